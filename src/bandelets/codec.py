@@ -1,0 +1,318 @@
+"""The bandelet codec: the transform of the paper end to end, and .bdl encode / decode.
+
+``forward`` and ``inverse`` are the paper's bandelet transform of one channel (steps (1) to
+(10)): pad, 2D wavelet transform, then in every detail subband the Lagrangian search of
+the best direction of every dyadic square, the best quadtree, and the bandeletization.
+``encode`` and ``decode`` add quantization (Q_T), entropy coding and the file format, for
+images of one to four channels; rate control lives in :mod:`bandelets.ratecontrol`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import entropy
+from .bandeletize import bandeletize, debandeletize
+from .bitstream import KINDS, TRANSFORMS, FormatError, Header, pack, unpack
+from .geometry import directions
+from .lagrangian import LAMBDA, best_directions
+from .layout import coding_plan
+from .quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
+from .quantize import dequantize, quantize
+from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
+
+__all__ = ["Bandelets", "forward", "inverse", "encode_at_threshold", "decode", "check_image"]
+
+
+@dataclass(frozen=True)
+class Bandelets:
+    """Bandelet representation of one channel.
+
+    Attributes
+    ----------
+    coefficients : ndarray, shape (H', W'), float64
+        Wavelet coefficients (Mallat layout, padded size) with every bandelet square replaced
+        by its 1D coefficients in zig-zag order.
+    trees : list of Quadtree
+        Segmentation and directions of each detail subband, coarsest level first, H, V, D.
+    shape : (H, W)
+        Size of the channel before padding.
+    wavelet : str
+    levels : int
+    threshold : float
+        The ``T`` the basis was chosen for.
+    """
+
+    coefficients: np.ndarray
+    trees: list
+    shape: tuple
+    wavelet: str
+    levels: int
+    threshold: float
+
+
+def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
+    rows, cols = padded_shape(channel.shape, levels)
+    # Mirror padding keeps the padded image as smooth as the original at its border.
+    return np.pad(channel, ((0, rows - channel.shape[0]), (0, cols - channel.shape[1])), mode="symmetric")
+
+
+def _best_trees(coefficients: np.ndarray, levels: int, threshold: float, transform: str) -> list:
+    """Best quadtree and directions of every detail subband (paper steps (3) to (8), (10))."""
+    trees = []
+    for _, _, where in subband_slices(coefficients.shape, levels):
+        subband = coefficients[where]
+        root = root_width(subband.shape)
+        if transform == "wavelet" or root == 0:
+            trees.append(flat_quadtree(subband.shape, root))
+            continue
+        covered = subband[: subband.shape[0] // root * root, : subband.shape[1] // root * root]
+        costs, dirs = [], []
+        width = MIN_WIDTH
+        while width <= root:
+            cost, d = best_directions(covered, width, threshold)
+            costs.append(cost)
+            dirs.append(d)
+            width *= 2
+        trees.append(best_quadtree(costs, dirs, LAMBDA * threshold * threshold))
+    return trees
+
+
+def _apply_trees(coefficients: np.ndarray, levels: int, trees: list, transform_fn) -> np.ndarray:
+    out = coefficients.copy()
+    for (_, _, where), tree in zip(subband_slices(coefficients.shape, levels), trees, strict=True):
+        out[where] = transform_fn(coefficients[where], tree)
+    return out
+
+
+def forward(
+    channel: np.ndarray,
+    threshold: float,
+    *,
+    wavelet: str = "cdf97",
+    levels: int | None = None,
+    transform: str = "bandelet",
+) -> Bandelets:
+    """Bandelet transform of one channel, with the basis chosen for threshold ``T``.
+
+    Parameters
+    ----------
+    channel : ndarray, shape (H, W)
+        Finite values.
+    threshold : float
+        ``T`` > 0: the quantization step the Lagrangian optimises the basis for.
+    wavelet : str
+        ``"cdf97"`` (biorthogonal, default) or an orthogonal wavelet of
+        :data:`bandelets.wavelets.WAVELETS`.
+    levels : int, optional
+        Wavelet levels (default :func:`bandelets.wavelets.max_levels`).
+    transform : {"bandelet", "wavelet"}
+        ``"wavelet"`` keeps every square NULL.
+
+    Returns
+    -------
+    Bandelets
+    """
+    x = check_image(channel, "image")[..., 0]
+    _check_options(threshold, transform, wavelet)
+    levels = levels or max_levels(x.shape)
+    c = wavedec(_pad(x, levels), wavelet, levels)
+    trees = _best_trees(c, levels, threshold, transform)
+    return Bandelets(_apply_trees(c, levels, trees, bandeletize), trees, x.shape, wavelet, levels, threshold)
+
+
+def inverse(b: Bandelets) -> np.ndarray:
+    """Inverse bandelet transform: the channel, shape ``b.shape``."""
+    c = _apply_trees(b.coefficients, b.levels, b.trees, debandeletize)
+    return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
+
+
+# ---------------------------------------------------------------------------------------------
+# Entropy coding of the geometry: quadtree splits and directions.
+
+_MAX_TREE_LEVELS = 4  # root widths up to 32
+
+
+def _direction_bits(level: int) -> int:
+    return int(np.ceil(np.log2(directions(MIN_WIDTH << level)[1].shape[0])))
+
+
+_DIRECTION_BASES = np.cumsum([_MAX_TREE_LEVELS] + [1 << (_direction_bits(k)) for k in range(_MAX_TREE_LEVELS)])
+
+
+def _code_tree(splits: entropy.Coder, dirs: entropy.Coder, tree: Quadtree | None,
+               shape: tuple[int, int]) -> Quadtree:
+    """Code (``tree`` given) or decode (``tree`` None) the quadtree of a subband of ``shape``."""
+    root = root_width(shape)
+    if root == 0:
+        return flat_quadtree(shape, 0)
+    n_levels = root.bit_length() - MIN_WIDTH.bit_length() + 1
+    rows, cols = shape[0] // root * root, shape[1] // root * root
+    cells = [(rows // (MIN_WIDTH << k), cols // (MIN_WIDTH << k)) for k in range(n_levels)]
+    leaf = [np.zeros(c, bool) for c in cells]
+    opened = np.ones(cells[-1], bool)
+    for level in range(n_levels - 1, -1, -1):
+        if level == 0:
+            leaf[0] = opened
+            break
+        split = np.zeros(int(opened.sum()), np.int64) if tree is None else ~tree.leaf[level][opened]
+        split = entropy.code_flags(splits, split, np.full(split.shape, level))
+        leaf[level][opened] = split == 0
+        opened = (opened & ~leaf[level]).repeat(2, axis=0).repeat(2, axis=1)
+    direction = [np.full(c, -1, np.int64) for c in cells]
+    decoded = Quadtree(root, tuple(leaf), tuple(direction))
+    r, c, w, d = (tree or decoded).leaves()
+    level = np.log2(w // MIN_WIDTH).astype(np.int64)
+    has = entropy.code_flags(dirs, d >= 0 if tree else np.zeros(r.shape, np.int64), level)
+    pick = has == 1
+    n_bits = np.array([_direction_bits(k) for k in range(n_levels)])[level[pick]]
+    sym = entropy.code_symbols(dirs, np.maximum(d[pick], 0) if tree else np.zeros(n_bits.shape),
+                               _DIRECTION_BASES[level[pick]], n_bits)
+    if tree is not None:
+        return tree
+    n_dirs = np.array([directions(MIN_WIDTH << k)[1].shape[0] for k in range(n_levels)])
+    if np.any(sym >= n_dirs[level[pick]]):
+        raise FormatError("corrupt .bdl file: direction index out of range")
+    for k in range(n_levels):
+        at = pick & (level == k)
+        width = MIN_WIDTH << k
+        direction[k][r[at] // width, c[at] // width] = sym[level[pick] == k]
+    return decoded
+
+
+def _new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
+    sizes = (_MAX_TREE_LEVELS, int(_DIRECTION_BASES[-1]), entropy.coefficient_contexts())
+    return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
+
+
+# ---------------------------------------------------------------------------------------------
+# Images in and out.
+
+
+def check_image(array, kind: str) -> np.ndarray:
+    """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(KINDS)}")
+    try:
+        x = np.asarray(array, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"input is not a numeric array ({err})") from None
+    if x.ndim == 2:
+        x = x[..., None]
+    if x.ndim != 3 or not 1 <= x.shape[2] <= 4:
+        raise ValueError(f"expected an H x W or H x W x C array with 1 to 4 channels, got shape {x.shape}")
+    if x.shape[0] * x.shape[1] < 2:
+        raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
+    if kind != "image" and x.shape[2] != 3:
+        raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("input contains NaN or infinite values")
+    return x
+
+
+def _check_options(threshold: float, transform: str, wavelet: str) -> None:
+    if transform not in TRANSFORMS:
+        raise ValueError(f"unknown transform {transform!r}; choose one of {', '.join(TRANSFORMS)}")
+    if wavelet not in WAVELETS:
+        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {', '.join(WAVELETS)}")
+    if not (np.isfinite(threshold) and threshold > 0):
+        raise ValueError(f"threshold must be a positive number, got {threshold}")
+
+
+def _renormalise(vectors: np.ndarray) -> np.ndarray:
+    """Unit vectors; zero vectors (no direction left after coding) become +z."""
+    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    out = np.where(norm > 0, vectors / np.where(norm > 0, norm, 1), 0.0)
+    out[..., 2][norm[..., 0] == 0] = 1.0
+    return out
+
+
+@dataclass(frozen=True)
+class Encoded:
+    """A .bdl file and what the encoder knows about it."""
+
+    data: bytes
+    threshold: float
+    coefficient_sse: float  # squared quantization error summed over all (padded) coefficients
+
+
+def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) -> Encoded:
+    """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
+
+    Rate control calls this repeatedly with the same coefficients: the wavelet transform is
+    done once, the basis search and the coding once per threshold.
+    """
+    threshold = header.threshold
+    splits, dirs, coeffs = _new_coders()
+    sse = 0.0
+    for c in wavelet_coefficients:
+        trees = _best_trees(c, header.levels, threshold, header.transform)
+        if header.transform == "bandelet":
+            for (_, _, where), tree in zip(subband_slices(c.shape, header.levels), trees, strict=True):
+                _code_tree(splits, dirs, tree, c[where].shape)
+        b = _apply_trees(c, header.levels, trees, bandeletize)
+        q = quantize(b, threshold)
+        sse += float(np.sum((b - dequantize(q, threshold)) ** 2))
+        entropy.code_coefficients(coeffs, q.ravel(), coding_plan(c.shape, header.levels, trees))
+    data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
+    return Encoded(data, threshold, sse)
+
+
+def wavelet_coefficients(x: np.ndarray, wavelet: str, levels: int) -> list[np.ndarray]:
+    """Padded, normalised wavelet coefficients of every channel of ``x`` (H, W, C)."""
+    return [wavedec(_pad(x[..., k], levels), wavelet, levels) for k in range(x.shape[2])]
+
+
+def decode(data: bytes, **limits) -> np.ndarray:
+    """Decode a .bdl file.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole file.
+    **limits
+        ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
+
+    Returns
+    -------
+    ndarray, float64, shape (H, W) for one channel or (H, W, C); a normal map's vectors are
+    renormalised to unit length.
+
+    Raises
+    ------
+    FormatError
+        For any corrupt, truncated or unsupported file.
+    """
+    header, streams = unpack(bytes(data), **limits)
+    return decode_parsed(header, streams)
+
+
+def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.ndarray:
+    """Decode a file already split by :func:`bandelets.bitstream.unpack`."""
+    splits, dirs, coeffs = _new_coders(streams)
+    shape = padded_shape((header.height, header.width), header.levels)
+    band_shapes = [(r.stop - r.start, c.stop - c.start) for *_, (r, c) in subband_slices(shape, header.levels)]
+    channels = []
+    try:
+        for _ in range(header.channels):
+            trees = [
+                _code_tree(splits, dirs, None, band)
+                if header.transform == "bandelet"
+                else flat_quadtree(band, root_width(band))
+                for band in band_shapes
+            ]
+            q = np.zeros(shape[0] * shape[1], np.int32)
+            entropy.code_coefficients(coeffs, q, coding_plan(shape, header.levels, trees))
+            b = Bandelets(dequantize(q.reshape(shape), header.threshold), trees,
+                          (header.height, header.width), header.wavelet, header.levels, header.threshold)
+            channels.append(inverse(b))
+        for coder in (splits, dirs, coeffs):
+            coder.check()
+    except entropy.CorruptStream as err:
+        raise FormatError(f"corrupt .bdl file: {err}") from None
+    out = np.stack(channels, axis=-1)
+    if header.kind == "normal-map":
+        out = _renormalise(out)
+    return out[..., 0] if header.channels == 1 else out

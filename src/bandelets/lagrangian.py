@@ -1,0 +1,185 @@
+"""Step (8) of the paper: the Lagrangian of a square for each direction, and the best one.
+
+For a square ``S`` and a direction ``d`` (or NULL), with ``b`` the coefficients of ``S`` in
+that basis::
+
+    L(S, d) = sum_k (b_k - Q_T(b_k))**2  +  lambda T**2 (R_G(d) + R_B(b))
+
+with the paper's ``lambda = 3/28``. The paper prices ``R_B`` at about 7 bits per significant
+coefficient; our context coder spends much less on the zeros of a sparse square than on
+the zeros of a busy one, so that model would overvalue bandeletization (DESIGN.md). The
+rate model used here (:func:`coefficient_bits`) follows what the coder pays:
+
+* significance: for every group of coefficients the coder sees with the same statistics
+  (one group for a wavelet square, one per 1D Haar scale for a bandelet square), the
+  ideal adaptive code length of which ``k`` of the ``n`` are significant,
+  ``log2 binomial(n, k)``, times a calibrated factor;
+* each significant coefficient of bin index ``m``: a fixed cost (sign and first magnitude
+  decisions) plus a cost per doubling of ``m``.
+
+The constants in :data:`RATE_MODEL` were fitted against the real coder's output on the
+generated test surfaces (``benchmarks/calibrate_rate.py`` refits them and
+``tests/test_lagrangian.py`` checks that the model tracks the real bits).
+
+The search itself (:func:`best_directions`) is compiled with numba and runs over all squares of
+one width in parallel: per square, every reordering of :func:`bandelets.geometry.directions` is
+gathered, Haar-transformed and priced.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .bandeletize import haar_inplace
+from .geometry import directions
+from .quantize import bin_index, quantization_error
+
+__all__ = ["LAMBDA", "RATE_MODEL", "coefficient_bits", "geometry_bits", "best_directions"]
+
+#: The paper's Lagrange multiplier (Le Pennec and Mallat 2004).
+LAMBDA = 3.0 / 28.0
+
+#: Rate model, in bits: [significance factor, cost per significant coefficient, cost per
+#: doubling of its bin index] for wavelet squares then for bandelet squares, then the
+#: geometry: [bits of a NULL leaf, bits of a direction flag].
+RATE_MODEL = np.array([0.80, 3.2, 1.6, 0.80, 3.2, 1.6, 0.3, 1.0])
+
+
+@njit(cache=True, inline="always")
+def _log2_binomial(n: int, k: int) -> float:
+    if k == 0 or k == n:
+        return 0.0
+    return (math.lgamma(n + 1) - math.lgamma(k + 1) - math.lgamma(n - k + 1)) / math.log(2.0)
+
+
+@njit(cache=True)
+def coefficient_bits(
+    values: np.ndarray, threshold: float, bandelet: bool, model: np.ndarray
+) -> tuple[float, float]:
+    """Quantization error and modelled bits of the coefficients of one square.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,)
+        A wavelet square raveled (``bandelet=False``) or 1D Haar coefficients, coarse first.
+    threshold : float
+        ``T``.
+    bandelet : bool
+        Selects the grouping and the constants of :data:`RATE_MODEL`.
+    model : ndarray
+        :data:`RATE_MODEL`.
+
+    Returns
+    -------
+    (squared error, bits)
+    """
+    base = 3 if bandelet else 0
+    distortion = 0.0
+    bits = 0.0
+    start = 0
+    n = values.shape[0]
+    while start < n:
+        # Groups: the whole square, or the Haar scales [0], [1], [2, 3], [4..7], ...
+        stop = n if not bandelet else (1 if start == 0 else 2 * start)
+        significant = 0
+        for i in range(start, stop):
+            distortion += quantization_error(values[i], threshold)
+            m = bin_index(values[i], threshold)
+            if m > 0:
+                significant += 1
+                bits += model[base + 1] + model[base + 2] * math.log2(m)
+        bits += model[base] * _log2_binomial(stop - start, significant)
+        start = stop
+    return distortion, bits
+
+
+def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, float]:
+    """Modelled bits of the geometry of a leaf of ``width``: (NULL, any direction)."""
+    n_dirs = directions(width)[1].shape[0]
+    return float(model[6]), float(model[7] + math.log2(n_dirs))
+
+
+@njit(cache=True, parallel=True)
+def _search(
+    subband: np.ndarray,
+    width: int,
+    orders: np.ndarray,
+    threshold: float,
+    model: np.ndarray,
+    null_bits: float,
+    direction_bits: float,
+    allow_directions: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    rows = subband.shape[0] // width
+    cols = subband.shape[1] // width
+    n = width * width
+    price = LAMBDA * threshold * threshold
+    cost = np.empty((rows, cols))
+    best = np.full((rows, cols), -1, np.int64)
+    for s in prange(rows * cols):
+        r = s // cols
+        c = s % cols
+        square = np.ascontiguousarray(
+            subband[r * width : (r + 1) * width, c * width : (c + 1) * width]
+        ).ravel()
+        distortion, bits = coefficient_bits(square, threshold, False, model)
+        best_cost = distortion + price * (bits + null_bits)
+        if allow_directions:
+            signal = np.empty(n)
+            tmp = np.empty(n)
+            for d in range(orders.shape[0]):
+                for i in range(n):
+                    signal[i] = square[orders[d, i]]
+                haar_inplace(signal, tmp)
+                distortion, bits = coefficient_bits(signal, threshold, True, model)
+                candidate = distortion + price * (bits + direction_bits)
+                if candidate < best_cost:
+                    best_cost = candidate
+                    best[r, c] = d
+        cost[r, c] = best_cost
+    return cost, best
+
+
+def best_directions(
+    subband: np.ndarray,
+    width: int,
+    threshold: float,
+    *,
+    allow_directions: bool = True,
+    model: np.ndarray = RATE_MODEL,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Best Lagrangian and direction of every square of ``width`` tiling ``subband``.
+
+    Parameters
+    ----------
+    subband : ndarray, shape (h, w), float64
+        Wavelet coefficients; only the top-left ``floor(h/width)*width x floor(w/width)*width``
+        region is tiled.
+    width : int
+        Square width ``L``, a power of two >= 4.
+    threshold : float
+        ``T``.
+    allow_directions : bool
+        False prices NULL only (the wavelet baseline).
+
+    Returns
+    -------
+    cost : ndarray, shape (h // width, w // width)
+        ``min_d L(S, d)``.
+    direction : ndarray of int64, same shape
+        The minimising direction index, -1 for NULL.
+    """
+    null_bits, direction_bits = geometry_bits(width, model)
+    return _search(
+        np.ascontiguousarray(subband, dtype=np.float64),
+        width,
+        directions(width)[1],
+        float(threshold),
+        model,
+        null_bits,
+        direction_bits,
+        allow_directions,
+    )
