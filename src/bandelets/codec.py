@@ -316,3 +316,82 @@ def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.nda
     if header.kind == "normal-map":
         out = _renormalise(out)
     return out[..., 0] if header.channels == 1 else out
+
+
+def encode(
+    array,
+    *,
+    bpp: float | None = None,
+    threshold: float | None = None,
+    psnr: float | None = None,
+    transform: str = "bandelet",
+    kind: str = "image",
+    wavelet: str = "cdf97",
+    depth: int = 0,
+    progress: bool = False,
+) -> bytes:
+    """Compress an image, normal map or geometry image into a .bdl file.
+
+    Parameters
+    ----------
+    array : array_like, shape (H, W) or (H, W, C), C <= 4
+        Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
+    bpp, threshold, psnr : float, exactly one
+        Target rate in bits per pixel (the file lands within 3 % below it), quantization
+        threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
+    transform : {"bandelet", "wavelet"}
+        ``"wavelet"`` forces every square to NULL: the same codec without geometry.
+    kind : {"image", "normal-map", "geometry-image"}
+        A normal map is renormalised to unit vectors before coding and after decoding.
+    wavelet : str
+        See :data:`bandelets.wavelets.WAVELETS`.
+    depth : {0, 8, 16}
+        Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
+    progress : bool
+        Progress bar during rate control.
+
+    Returns
+    -------
+    bytes
+    """
+    return encode_with_stats(array, bpp=bpp, threshold=threshold, psnr=psnr, transform=transform,
+                             kind=kind, wavelet=wavelet, depth=depth, progress=progress).data
+
+
+def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="bandelet",
+                      kind="image", wavelet="cdf97", depth=0, progress=False) -> Encoded:
+    """:func:`encode`, returning also the threshold used and the predicted error."""
+    from . import metrics, ratecontrol
+
+    x = check_image(array, kind)
+    if kind == "normal-map":
+        x = metrics.unit_vectors(x)
+    targets = [v for v in (bpp, threshold, psnr) if v is not None]
+    if len(targets) != 1:
+        raise ValueError("give exactly one of bpp, threshold or psnr")
+    if depth not in (0, 8, 16):
+        raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
+    _check_options(threshold or 1.0, transform, wavelet)
+    levels = max_levels(x.shape[:2])
+    coefficients = wavelet_coefficients(x, wavelet, levels)
+
+    def encode_at(t: float) -> Encoded:
+        header = Header(x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth)
+        return encode_at_threshold(coefficients, header)
+
+    t_max = 2.0 * max(float(np.max(np.abs(c))) for c in coefficients) + 1e-300
+    if threshold is not None:
+        return encode_at(float(threshold))
+    if bpp is not None:
+        if not (np.isfinite(bpp) and bpp > 0):
+            raise ValueError(f"bpp must be a positive number, got {bpp}")
+        target = int(bpp * x.shape[0] * x.shape[1] / 8)
+        return ratecontrol.for_size(encode_at, target, t_max, progress)
+    if not np.isfinite(psnr):
+        raise ValueError(f"psnr must be a finite number, got {psnr}")
+    reference = x[..., 0] if x.shape[2] == 1 else x
+
+    def quality(data: bytes) -> float:
+        return metrics.psnr(reference, decode(data), kind)
+
+    return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, progress)

@@ -1,0 +1,27 @@
+"""bandelets: surface and normal-map compression with second-generation geometric bandelets.
+
+An implementation of Peyre and Mallat, "Surface Compression with Geometric Bandelets"
+(SIGGRAPH 2005): a 2D wavelet transform whose detail subbands are re-transformed along
+the direction of their geometry in every square of a best quadtree, followed by
+quantization, context-modelled arithmetic coding and a .bdl file.
+
+>>> import bandelets, numpy as np
+>>> data = bandelets.encode(np.random.default_rng(0).random((64, 64)), bpp=2.0)
+>>> bandelets.decode(data).shape
+(64, 64)
+"""
+
+from importlib import import_module
+
+__all__ = ["Bandelets", "FormatError", "decode", "encode", "forward", "inverse"]
+__version__ = "0.1.0"
+
+# The codec pulls in numba; it is imported on first use so that the command line starts fast.
+_HOME = {"FormatError": "bitstream", "Bandelets": "codec", "decode": "codec", "encode": "codec",
+         "forward": "codec", "inverse": "codec"}
+
+
+def __getattr__(name: str):
+    if name in _HOME:
+        return getattr(import_module(f".{_HOME[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,165 @@
+"""Command line: argument parsing and error reporting only.
+
+Every command imports the codec (numba, imagecodecs) when it runs, so that
+``bandelets --help`` starts at once. Any error the user can cause ends in one line
+``bandelets: error: ...`` on stderr and exit status 2; outputs are written to a temporary
+file and renamed, so a failed command leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+from pathlib import Path
+
+__all__ = ["main"]
+
+KINDS = ("image", "normal-map", "geometry-image")
+TRANSFORMS = ("bandelet", "wavelet")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, like every other error
+        raise _UsageError(message)
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="bandelets", description="Compress images, normal maps and geometry "
+                     "images with geometric bandelets (Peyre and Mallat 2005).")
+    parser.add_argument("--version", action="version", version="bandelets 0.1.0")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("encode", help="compress a PNG or .npy file into a .bdl file")
+    p.add_argument("input", help="PNG (8/16-bit gray, RGB, RGBA) or .npy (H x W or H x W x C floats)")
+    p.add_argument("output", help="the .bdl file to write")
+    target = p.add_mutually_exclusive_group()
+    target.add_argument("--bpp", type=float, help="target rate in bits per pixel (default 1)")
+    target.add_argument("--threshold", type=float, help="quantization threshold T")
+    target.add_argument("--psnr", type=float, help="target PSNR in dB")
+    p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
+    p.add_argument("--kind", choices=KINDS, default="image",
+                   help="image (default), normal-map (RGB vectors, renormalised) or geometry-image")
+    p.add_argument("--wavelet", default="cdf97", help="cdf97 (default), haar, db2, db4, db6 or db8")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+    p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
+    p.add_argument("input")
+    p.add_argument("output", help=".png (the source's bit depth) or .npy (float32)")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+    p = sub.add_parser("info", help="print what a .bdl file holds, as one JSON object")
+    p.add_argument("input")
+
+    p = sub.add_parser("demo", help="compress a generated normal map with bandelets and wavelets")
+    p.add_argument("--size", type=int, default=512, help="side of the generated map (default 512)")
+    p.add_argument("--rates", default="0.25,0.5,1,2", help="target bpp list (default 0.25,0.5,1,2)")
+    p.add_argument("--out", default="bandelets-demo", help="folder for the files (default bandelets-demo)")
+    return parser
+
+
+def _check_output(input_path: str, output: str, force: bool) -> None:
+    out = Path(output)
+    if out.exists() and Path(input_path).exists() and os.path.samefile(input_path, out):
+        raise ValueError(f"{output}: output would overwrite the input")
+    if out.exists() and not force:
+        raise ValueError(f"{output}: already exists (use --force to overwrite)")
+    if not out.parent.exists() and str(out.parent):
+        raise ValueError(f"{output}: folder {out.parent} does not exist")
+
+
+def _encode(args) -> None:
+    from .codec import encode
+    from .files import read_array, write_atomic
+
+    _check_output(args.input, args.output, args.force)
+    array, depth = read_array(args.input, args.kind)
+    target = {"bpp": args.bpp, "threshold": args.threshold, "psnr": args.psnr}
+    if all(v is None for v in target.values()):
+        target["bpp"] = 1.0
+    data = encode(array, **target, transform=args.transform, kind=args.kind, wavelet=args.wavelet,
+                  depth=depth, progress=sys.stderr.isatty())
+    write_atomic(args.output, data)
+
+
+def _decode(args) -> None:
+    from .bitstream import unpack
+    from .codec import decode_parsed
+    from .files import write_array
+
+    _check_output(args.input, args.output, args.force)
+    header, streams = unpack(_read_bdl(args.input))
+    write_array(args.output, decode_parsed(header, streams), header.kind, header.depth)
+
+
+def _read_bdl(path: str) -> bytes:
+    if not Path(path).is_file():
+        raise ValueError(f"{path}: no such file")
+    return Path(path).read_bytes()
+
+
+def _info(args) -> None:
+    from .bitstream import FORMAT_VERSION, unpack
+    from .metrics import bits_per_pixel
+
+    data = _read_bdl(args.input)
+    header, streams = unpack(data)
+    info = {
+        "width": header.width,
+        "height": header.height,
+        "channels": header.channels,
+        "kind": header.kind,
+        "transform": header.transform,
+        "wavelet": header.wavelet,
+        "levels": header.levels,
+        "threshold": header.threshold,
+        "bytes": len(data),
+        "bpp": bits_per_pixel(len(data), (header.height, header.width)),
+        "bits": {
+            "header": 8 * (len(data) - sum(len(s) for s in streams)),
+            "quadtree": 8 * len(streams[0]),
+            "geometry": 8 * len(streams[1]),
+            "coefficients": 8 * len(streams[2]),
+        },
+        "format_version": FORMAT_VERSION,
+    }
+    print(json.dumps(info))
+
+
+def _demo(args) -> None:
+    from .demo import run_demo
+
+    rates = [float(r) for r in args.rates.split(",") if r.strip()]
+    if args.size < 16:
+        raise ValueError(f"--size must be at least 16, got {args.size}")
+    run_demo(args.size, rates, Path(args.out), progress=sys.stderr.isatty())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = _build_parser()
+    commands = {"encode": _encode, "decode": _decode, "info": _info, "demo": _demo}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            args = parser.parse_args(argv)
+            commands[args.command](args)
+        except _UsageError as err:
+            print(f"bandelets: error: {err} (see bandelets --help)", file=sys.stderr)
+            return 2
+        except (ValueError, OSError) as err:
+            print(f"bandelets: error: {err}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("bandelets: interrupted", file=sys.stderr)
+            return 130
+        finally:
+            for w in caught:
+                print(f"bandelets: warning: {w.message}", file=sys.stderr)
+    return 0

@@ -1,0 +1,99 @@
+"""Reading and writing the arrays the command line works on: PNG and .npy.
+
+PNG samples are mapped to [0, 1] for images and to [-1, 1] for normal maps (``2 v - 1``),
+and mapped back the same way, at the bit depth recorded in the .bdl file. PNG coding goes
+through ``imagecodecs`` (libpng), which reads and writes 16-bit RGB.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["read_array", "write_array", "write_atomic"]
+
+
+def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
+    """Read a PNG or .npy file.
+
+    Returns
+    -------
+    array : ndarray, float64, (H, W) or (H, W, C)
+    depth : int
+        PNG bit depth (8 or 16), or 0 for .npy.
+
+    Raises
+    ------
+    ValueError
+        Missing, unreadable or unsupported file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            array = np.load(path, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as err:
+            raise ValueError(f"{path}: not a readable .npy file ({err})") from None
+        if not np.issubdtype(array.dtype, np.number) or np.iscomplexobj(array):
+            raise ValueError(f"{path}: expected a real numeric array, got dtype {array.dtype}")
+        return array.astype(np.float64), 0
+    if suffix != ".png":
+        raise ValueError(f"{path}: unsupported input format {suffix or '(none)'}; use .png or .npy")
+    import imagecodecs
+
+    try:
+        pixels = imagecodecs.png_decode(path.read_bytes())
+    except Exception as err:  # imagecodecs raises its own error types for bad data
+        raise ValueError(f"{path}: not a readable PNG file ({err})") from None
+    if pixels.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"{path}: unsupported PNG sample type {pixels.dtype}")
+    depth = 8 if pixels.dtype == np.uint8 else 16
+    if pixels.ndim == 3 and pixels.shape[2] in (2, 4):
+        warnings.warn(f"{path}: alpha channel dropped", stacklevel=2)
+        pixels = pixels[..., :-1]
+    if pixels.ndim == 3 and pixels.shape[2] == 1:
+        pixels = pixels[..., 0]
+    values = pixels.astype(np.float64) / (2**depth - 1)
+    if kind == "normal-map":
+        values = 2.0 * values - 1.0
+    return values, depth
+
+
+def write_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_array(path: str | os.PathLike, array: np.ndarray, kind: str, depth: int) -> None:
+    """Write a decoded array as .npy (float32) or PNG (``depth`` bits, 16 for float sources)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        buffer = io.BytesIO()
+        np.save(buffer, array.astype(np.float32))
+        write_atomic(path, buffer.getvalue())
+        return
+    if suffix != ".png":
+        raise ValueError(f"{path}: unsupported output format {suffix or '(none)'}; use .png or .npy")
+    import imagecodecs
+
+    values = (array + 1.0) / 2.0 if kind == "normal-map" else array
+    depth = depth or 16
+    top = 2**depth - 1
+    pixels = np.clip(np.rint(values * top), 0, top).astype(np.uint8 if depth == 8 else np.uint16)
+    write_atomic(path, imagecodecs.png_encode(pixels))

@@ -1,0 +1,74 @@
+"""Distortion and rate measures.
+
+Every rate is a file: ``bpp = 8 * bytes / (H * W)``. Every PSNR compares a decoded array
+with its source.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "peak", "unit_vectors"]
+
+
+def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
+    """``8 * n_bytes / (H * W)`` for an image of ``shape`` (H, W[, C])."""
+    return 8.0 * n_bytes / (shape[0] * shape[1])
+
+
+def unit_vectors(vectors: np.ndarray) -> np.ndarray:
+    """Vectors (last axis) scaled to unit length; zero vectors become +z."""
+    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    out = vectors / np.where(norm > 0, norm, 1.0)
+    out[..., 2] = np.where(norm[..., 0] > 0, out[..., 2], 1.0)
+    return out
+
+
+def peak(reference: np.ndarray, kind: str = "image") -> float:
+    """Peak value of the PSNR of each kind.
+
+    * image: the value range of the reference (1 when it is constant);
+    * normal-map: ``max |f|``, as in the paper (section 6);
+    * geometry-image: the diagonal of the bounding box of the positions.
+    """
+    reference = np.asarray(reference, np.float64)
+    if kind == "normal-map":
+        return float(np.max(np.abs(reference)))
+    if kind == "geometry-image":
+        flat = reference.reshape(-1, reference.shape[-1])
+        return float(np.linalg.norm(np.ptp(flat, axis=0)))
+    span = float(np.ptp(reference))
+    return span if span > 0 else 1.0
+
+
+def psnr(reference: np.ndarray, decoded: np.ndarray, kind: str = "image") -> float:
+    """``20 log10(peak / RMSE)`` in dB (``inf`` when equal).
+
+    For a normal map both arrays are compared after renormalising the reference to unit
+    vectors (the decoder already renormalises), as the paper measures.
+    """
+    reference = np.asarray(reference, np.float64)
+    decoded = np.asarray(decoded, np.float64).reshape(reference.shape)
+    if kind == "normal-map":
+        reference = unit_vectors(reference)
+    rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
+    return float("inf") if rmse == 0 else 20.0 * np.log10(peak(reference, kind) / rmse)
+
+
+def bd_psnr(rates_a, psnrs_a, rates_b, psnrs_b) -> float:
+    """Bjontegaard delta PSNR of curve A over curve B, in dB.
+
+    Each curve's PSNR is fitted by a cubic polynomial in ``log10(rate)``; the fits are
+    averaged over the rate interval both curves cover, and B's average is subtracted from A's.
+    Each curve needs at least four points.
+    """
+    la, lb = np.log10(np.asarray(rates_a, float)), np.log10(np.asarray(rates_b, float))
+    fa = np.polyfit(la, np.asarray(psnrs_a, float), 3)
+    fb = np.polyfit(lb, np.asarray(psnrs_b, float), 3)
+    lo, hi = max(la.min(), lb.min()), min(la.max(), lb.max())
+    if hi <= lo:
+        raise ValueError("the two rate-distortion curves do not overlap")
+    ia, ib = np.polyint(fa), np.polyint(fb)
+    mean_a = (np.polyval(ia, hi) - np.polyval(ia, lo)) / (hi - lo)
+    mean_b = (np.polyval(ib, hi) - np.polyval(ib, lo)) / (hi - lo)
+    return float(mean_a - mean_b)
