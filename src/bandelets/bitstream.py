@@ -11,7 +11,7 @@ Layout (little endian)::
     8       1     wavelet levels
     9       1     channels (1 to 4)
     10      1     source sample depth: 0 float, 8 or 16 (PNG bits, for decoding back to PNG)
-    11      1     reserved, 0
+    11      1     1D transform along the directions: 0 haar, 1 alpert2
     12      4     height
     16      4     width
     20      8     threshold T (float64)
@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bandeletize import TRANSFORMS_1D
 from .wavelets import MAX_LEVELS, WAVELETS
 
 __all__ = [
@@ -74,6 +75,7 @@ class Header:
     levels: int
     threshold: float
     depth: int = 0
+    transform_1d: str = "haar"
 
 
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
@@ -87,7 +89,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.levels,
         header.channels,
         header.depth,
-        0,
+        TRANSFORMS_1D.index(header.transform_1d),
         header.height,
         header.width,
         header.threshold,
@@ -130,7 +132,7 @@ def unpack(
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
     if zlib.crc32(body) != crc:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
-    kind, transform, wavelet, levels, channels, depth, _, height, width, threshold = fields[2:12]
+    kind, transform, wavelet, levels, channels, depth, along, height, width, threshold = fields[2:12]
     lengths = fields[12:]
     checks = [
         (kind < len(KINDS), f"unknown kind code {kind}"),
@@ -138,6 +140,7 @@ def unpack(
         (wavelet < len(WAVELETS), f"unknown wavelet code {wavelet}"),
         (1 <= channels <= 4, f"bad channel count {channels}"),
         (depth in (0, 8, 16), f"bad sample depth {depth}"),
+        (along < len(TRANSFORMS_1D), f"unknown 1D transform code {along}"),
         (1 <= height <= max_side and 1 <= width <= max_side,
          f"image size {width} x {height} exceeds the limit of {max_side} per side"),
         (height * width * channels <= max_samples,
@@ -151,7 +154,7 @@ def unpack(
     if not 1 <= levels <= MAX_LEVELS:
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
     header = Header(height, width, channels, KINDS[kind], TRANSFORMS[transform], WAVELETS[wavelet],
-                    levels, threshold, depth)
+                    levels, threshold, depth, TRANSFORMS_1D[along])
     streams, start = [], _FIXED.size
     for n in lengths:
         streams.append(bytes(data[start : start + n]))

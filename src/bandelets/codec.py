@@ -14,13 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import entropy
-from .bandeletize import bandeletize, debandeletize
+from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
 from .bitstream import KINDS, TRANSFORMS, FormatError, Header, pack, unpack
 from .geometry import directions
 from .lagrangian import LAMBDA, best_directions
 from .layout import coding_plan
 from .quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
-from .quantize import dequantize, quantize
+from .quantize import MAX_INDEX, dequantize, quantize
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
 __all__ = ["Bandelets", "forward", "inverse", "encode_at_threshold", "decode", "check_image"]
@@ -43,6 +43,8 @@ class Bandelets:
     levels : int
     threshold : float
         The ``T`` the basis was chosen for.
+    transform_1d : str
+        The 1D transform along the directions.
     """
 
     coefficients: np.ndarray
@@ -51,6 +53,7 @@ class Bandelets:
     wavelet: str
     levels: int
     threshold: float
+    transform_1d: str = "haar"
 
 
 def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
@@ -59,20 +62,24 @@ def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
     return np.pad(channel, ((0, rows - channel.shape[0]), (0, cols - channel.shape[1])), mode="symmetric")
 
 
-def _best_trees(coefficients: np.ndarray, levels: int, threshold: float, transform: str) -> list:
-    """Best quadtree and directions of every detail subband (paper steps (3) to (8), (10))."""
+def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, transform: str,
+                transform_1d: str) -> list:
+    """Best quadtree and directions of every detail subband (paper steps (3) to (8), (10)).
+
+    ``coefficients`` holds the wavelet coefficients of every channel; they share one geometry.
+    """
     trees = []
-    for _, _, where in subband_slices(coefficients.shape, levels):
-        subband = coefficients[where]
-        root = root_width(subband.shape)
+    for _, _, where in subband_slices(coefficients[0].shape, levels):
+        subbands = np.stack([c[where] for c in coefficients])
+        root = root_width(subbands.shape[1:])
         if transform == "wavelet" or root == 0:
-            trees.append(flat_quadtree(subband.shape, root))
+            trees.append(flat_quadtree(subbands.shape[1:], root))
             continue
-        covered = subband[: subband.shape[0] // root * root, : subband.shape[1] // root * root]
+        covered = subbands[:, : subbands.shape[1] // root * root, : subbands.shape[2] // root * root]
         costs, dirs = [], []
         width = MIN_WIDTH
         while width <= root:
-            cost, d = best_directions(covered, width, threshold)
+            cost, d = best_directions(covered, width, threshold, transform_1d=transform_1d)
             costs.append(cost)
             dirs.append(d)
             width *= 2
@@ -80,10 +87,11 @@ def _best_trees(coefficients: np.ndarray, levels: int, threshold: float, transfo
     return trees
 
 
-def _apply_trees(coefficients: np.ndarray, levels: int, trees: list, transform_fn) -> np.ndarray:
+def _apply_trees(coefficients: np.ndarray, levels: int, trees: list, transform_fn,
+                 transform_1d: str) -> np.ndarray:
     out = coefficients.copy()
     for (_, _, where), tree in zip(subband_slices(coefficients.shape, levels), trees, strict=True):
-        out[where] = transform_fn(coefficients[where], tree)
+        out[where] = transform_fn(coefficients[where], tree, transform_1d)
     return out
 
 
@@ -94,6 +102,7 @@ def forward(
     wavelet: str = "cdf97",
     levels: int | None = None,
     transform: str = "bandelet",
+    transform_1d: str = "haar",
 ) -> Bandelets:
     """Bandelet transform of one channel, with the basis chosen for threshold ``T``.
 
@@ -110,22 +119,25 @@ def forward(
         Wavelet levels (default :func:`bandelets.wavelets.max_levels`).
     transform : {"bandelet", "wavelet"}
         ``"wavelet"`` keeps every square NULL.
+    transform_1d : {"haar", "alpert2"}
+        1D transform along the directions (:data:`bandelets.bandeletize.TRANSFORMS_1D`).
 
     Returns
     -------
     Bandelets
     """
     x = check_image(channel, "image")[..., 0]
-    _check_options(threshold, transform, wavelet)
+    _check_options(threshold, transform, wavelet, transform_1d)
     levels = levels or max_levels(x.shape)
     c = wavedec(_pad(x, levels), wavelet, levels)
-    trees = _best_trees(c, levels, threshold, transform)
-    return Bandelets(_apply_trees(c, levels, trees, bandeletize), trees, x.shape, wavelet, levels, threshold)
+    trees = _best_trees([c], levels, threshold, transform, transform_1d)
+    return Bandelets(_apply_trees(c, levels, trees, bandeletize, transform_1d), trees, x.shape, wavelet,
+                     levels, threshold, transform_1d)
 
 
 def inverse(b: Bandelets) -> np.ndarray:
     """Inverse bandelet transform: the channel, shape ``b.shape``."""
-    c = _apply_trees(b.coefficients, b.levels, b.trees, debandeletize)
+    c = _apply_trees(b.coefficients, b.levels, b.trees, debandeletize, b.transform_1d)
     return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
 
 
@@ -182,6 +194,32 @@ def _code_tree(splits: entropy.Coder, dirs: entropy.Coder, tree: Quadtree | None
     return decoded
 
 
+def code_channel(coder: entropy.Coder, q: np.ndarray, plan, trees: list, header: Header) -> np.ndarray:
+    """Code (or decode into ``q``) the coefficients of one channel, stage by stage.
+
+    After the bandelet squares of a subband, the contexts are given the wavelet
+    coefficients those squares decode to (see :mod:`bandelets.layout`).
+
+    Returns
+    -------
+    ndarray, shape (H * W,): ideal code length of every coefficient, in bits.
+    """
+    shape = padded_shape((header.height, header.width), header.levels)
+    known = np.zeros(q.shape, np.int64)
+    spent = np.zeros(q.shape)
+    bands = subband_slices(shape, header.levels)
+    start = 0
+    for stop, band in plan.stages + [(plan.order.shape[0], None)]:
+        entropy.code_coefficients(coder, q, plan, known, spent, start, stop)
+        start = stop
+        if band is not None:
+            where = bands[band][2]
+            view = known.reshape(shape)[where]
+            wavelets = debandeletize(dequantize(view, header.threshold), trees[band], header.transform_1d)
+            view[...] = np.clip(np.fix(wavelets / header.threshold), -MAX_INDEX, MAX_INDEX)
+    return spent
+
+
 def _new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
     sizes = (_MAX_TREE_LEVELS, int(_DIRECTION_BASES[-1]), entropy.coefficient_contexts())
     return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
@@ -212,11 +250,13 @@ def check_image(array, kind: str) -> np.ndarray:
     return x
 
 
-def _check_options(threshold: float, transform: str, wavelet: str) -> None:
+def _check_options(threshold: float, transform: str, wavelet: str, transform_1d: str) -> None:
     if transform not in TRANSFORMS:
         raise ValueError(f"unknown transform {transform!r}; choose one of {', '.join(TRANSFORMS)}")
     if wavelet not in WAVELETS:
         raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {', '.join(WAVELETS)}")
+    if transform_1d not in TRANSFORMS_1D:
+        raise ValueError(f"unknown 1D transform {transform_1d!r}; choose one of {', '.join(TRANSFORMS_1D)}")
     if not (np.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold must be a positive number, got {threshold}")
 
@@ -247,15 +287,17 @@ def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) 
     threshold = header.threshold
     splits, dirs, coeffs = _new_coders()
     sse = 0.0
+    trees = _best_trees(wavelet_coefficients, header.levels, threshold, header.transform, header.transform_1d)
+    shape = wavelet_coefficients[0].shape
+    if header.transform == "bandelet":
+        for (_, _, where), tree in zip(subband_slices(shape, header.levels), trees, strict=True):
+            _code_tree(splits, dirs, tree, wavelet_coefficients[0][where].shape)
+    plan = coding_plan(shape, header.levels, trees, header.transform_1d)
     for c in wavelet_coefficients:
-        trees = _best_trees(c, header.levels, threshold, header.transform)
-        if header.transform == "bandelet":
-            for (_, _, where), tree in zip(subband_slices(c.shape, header.levels), trees, strict=True):
-                _code_tree(splits, dirs, tree, c[where].shape)
-        b = _apply_trees(c, header.levels, trees, bandeletize)
+        b = _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d)
         q = quantize(b, threshold)
         sse += float(np.sum((b - dequantize(q, threshold)) ** 2))
-        entropy.code_coefficients(coeffs, q.ravel(), coding_plan(c.shape, header.levels, trees))
+        code_channel(coeffs, q.ravel(), plan, trees, header)
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse)
 
@@ -296,17 +338,19 @@ def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.nda
     band_shapes = [(r.stop - r.start, c.stop - c.start) for *_, (r, c) in subband_slices(shape, header.levels)]
     channels = []
     try:
+        trees = [
+            _code_tree(splits, dirs, None, band)
+            if header.transform == "bandelet"
+            else flat_quadtree(band, root_width(band))
+            for band in band_shapes
+        ]
+        plan = coding_plan(shape, header.levels, trees, header.transform_1d)
         for _ in range(header.channels):
-            trees = [
-                _code_tree(splits, dirs, None, band)
-                if header.transform == "bandelet"
-                else flat_quadtree(band, root_width(band))
-                for band in band_shapes
-            ]
             q = np.zeros(shape[0] * shape[1], np.int32)
-            entropy.code_coefficients(coeffs, q, coding_plan(shape, header.levels, trees))
+            code_channel(coeffs, q, plan, trees, header)
             b = Bandelets(dequantize(q.reshape(shape), header.threshold), trees,
-                          (header.height, header.width), header.wavelet, header.levels, header.threshold)
+                          (header.height, header.width), header.wavelet, header.levels, header.threshold,
+                          header.transform_1d)
             channels.append(inverse(b))
         for coder in (splits, dirs, coeffs):
             coder.check()
@@ -327,6 +371,7 @@ def encode(
     transform: str = "bandelet",
     kind: str = "image",
     wavelet: str = "cdf97",
+    transform_1d: str = "haar",
     depth: int = 0,
     progress: bool = False,
 ) -> bytes:
@@ -345,6 +390,8 @@ def encode(
         A normal map is renormalised to unit vectors before coding and after decoding.
     wavelet : str
         See :data:`bandelets.wavelets.WAVELETS`.
+    transform_1d : {"haar", "alpert2"}
+        1D transform along the directions.
     depth : {0, 8, 16}
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
     progress : bool
@@ -355,11 +402,13 @@ def encode(
     bytes
     """
     return encode_with_stats(array, bpp=bpp, threshold=threshold, psnr=psnr, transform=transform,
-                             kind=kind, wavelet=wavelet, depth=depth, progress=progress).data
+                             kind=kind, wavelet=wavelet, transform_1d=transform_1d, depth=depth,
+                             progress=progress).data
 
 
 def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="bandelet",
-                      kind="image", wavelet="cdf97", depth=0, progress=False) -> Encoded:
+                      kind="image", wavelet="cdf97", transform_1d="haar", depth=0,
+                      progress=False) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
     from . import metrics, ratecontrol
 
@@ -371,12 +420,13 @@ def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="
         raise ValueError("give exactly one of bpp, threshold or psnr")
     if depth not in (0, 8, 16):
         raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
-    _check_options(threshold or 1.0, transform, wavelet)
+    _check_options(threshold or 1.0, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
     coefficients = wavelet_coefficients(x, wavelet, levels)
 
     def encode_at(t: float) -> Encoded:
-        header = Header(x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth)
+        header = Header(x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth,
+                        transform_1d)
         return encode_at_threshold(coefficients, header)
 
     t_max = 2.0 * max(float(np.max(np.abs(c))) for c in coefficients) + 1e-300

@@ -43,8 +43,12 @@ _PROB_ONE = 1 << _PROB_BITS
 _PROB_MIN = 32
 _MAX_SHIFT = 7
 _SHIFT = np.minimum(np.floor(np.log2(np.arange(2, 130))), _MAX_SHIFT).astype(np.int64)
-# State slots (encoder: low, range, cache, cache_size, pos; decoder: code, range, -, -, pos, overrun)
-_LOW, _RANGE, _CACHE, _CACHE_SIZE, _POS, _OVERRUN = range(6)
+# State slots (encoder: low, range, cache, cache_size, pos; decoder: code, range, -, -, pos,
+# overrun), then the ideal code length spent so far, in 1/65536 bit.
+_LOW, _RANGE, _CACHE, _CACHE_SIZE, _POS, _OVERRUN, _SPENT = range(7)
+_COST_SCALE = 65536.0
+# -log2 of a probability, tabulated on 12 bits: the ledger of what each decision costs.
+_COST = np.rint(-np.log2((np.arange(4096) + 0.5) / 4096) * _COST_SCALE).astype(np.int64)
 
 #: Coefficient context classes: 0 approximation, 1-9 wavelet (orientation x level bucket),
 #: 10-14 bandelet (1D scale bucket).
@@ -79,7 +83,7 @@ class Coder:
         self.decoding = data is not None
         self.probs = np.full(n_contexts, _PROB_ONE // 2, np.int64)
         self.counts = np.zeros(n_contexts, np.int64)
-        self.state = np.zeros(6, np.int64)
+        self.state = np.zeros(7, np.int64)
         if self.decoding:
             self.buf = np.frombuffer(bytes(data), np.uint8).copy()
             _decoder_start(self.state, self.buf)
@@ -159,6 +163,7 @@ def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
     bound = (st[_RANGE] >> _PROB_BITS) * p  # p is the probability of a 1
     if decoding:
         bit = 1 if st[_LOW] < bound else 0
+    st[_SPENT] += _COST[(p if bit else _PROB_ONE - p) >> 4]
     if bit:
         st[_RANGE] = bound
     else:
@@ -251,10 +256,11 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
 
 
 @njit(cache=True)
-def _coefficients(st, buf, probs, counts, half, q, known, order, classes, neighbours, decoding):
+def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes, neighbours, decoding):
     mags = np.zeros(5, np.int64)
     for i in range(order.shape[0]):
         at = order[i]
+        before = st[_SPENT]
         cls = classes[i]
         for k in range(5):
             j = neighbours[i, k]
@@ -266,6 +272,7 @@ def _coefficients(st, buf, probs, counts, half, q, known, order, classes, neighb
         ctx = _SIG + (cls * _N_SUM + near) * 3 + mags[4]
         if _code_bit(st, buf, probs, counts, ctx, 1 if m > 0 else 0, decoding) == 0:
             known[at] = 0
+            spent[at] = (st[_SPENT] - before) / _COST_SCALE
             continue
         near5 = min(near, 4)
         if _code_bit(st, buf, probs, counts, _GT1 + cls * 5 + near5, 1 if m > 1 else 0, decoding):
@@ -297,6 +304,7 @@ def _coefficients(st, buf, probs, counts, half, q, known, order, classes, neighb
         negative = 1 if q[at] < 0 else 0
         negative = _code_bit(st, buf, probs, counts, _SIGN + cls * 3 + sign_ctx, negative, decoding)
         known[at] = -m if negative else m
+        spent[at] = (st[_SPENT] - before) / _COST_SCALE
         if decoding:
             q[at] = known[at]
     return 0
@@ -307,8 +315,9 @@ def coefficient_contexts() -> int:
     return _N_COEFF_CONTEXTS
 
 
-def code_coefficients(coder: Coder, q: np.ndarray, plan) -> None:
-    """Code the quantized coefficients of one channel in the order and contexts of ``plan``.
+def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spent: np.ndarray,
+                      start: int, stop: int) -> None:
+    """Code the quantized coefficients ``plan.order[start:stop]`` of one channel.
 
     Parameters
     ----------
@@ -318,14 +327,22 @@ def code_coefficients(coder: Coder, q: np.ndarray, plan) -> None:
         Signed bin indices, raveled Mallat layout. Filled in when decoding (pass zeros).
     plan : bandelets.layout.Plan
         Coding order, context class and neighbour positions of every coefficient.
+    known : ndarray of int64, shape (H * W,)
+        What the context models see: the values coded so far (zeros elsewhere). Updated.
+    spent : ndarray of float64, shape (H * W,)
+        Receives the ideal code length of each coefficient coded, in bits (what the rate
+        model of :mod:`bandelets.lagrangian` is fitted to).
+    start, stop : int
+        Range of the plan to code.
     """
     if not coder.decoding:
-        bits = np.abs(q[plan.order]).astype(np.int64)
+        bits = np.abs(q[plan.order[start:stop]]).astype(np.int64)
         nonzero = bits > 0
         lengths = np.zeros(bits.shape, np.int64)
         lengths[nonzero] = np.floor(np.log2(bits[nonzero])).astype(np.int64)
         coder.reserve(int(bits.shape[0] + np.sum(nonzero) * 6 + 2 * lengths.sum()) * 12 // 8 + 64)
     status = _coefficients(coder.state, coder.buf, coder.probs, coder.counts, _EQUIPROBABLE.copy(),
-                           q, np.zeros(q.shape, np.int64), plan.order, plan.classes, plan.neighbours, coder.decoding)
+                           q, known, spent, plan.order[start:stop], plan.classes[start:stop],
+                           plan.neighbours[start:stop], coder.decoding)
     if status != 0:
         raise CorruptStream("coded coefficient stream is corrupt")

@@ -33,11 +33,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .bandeletize import haar_inplace
+from .bandeletize import TRANSFORMS_1D, alpert_matrices, multiwavelet_inplace
 from .geometry import directions
 from .quantize import bin_index, quantization_error
 
-__all__ = ["LAMBDA", "RATE_MODEL", "coefficient_bits", "geometry_bits", "best_directions"]
+__all__ = ["LAMBDA", "RATE_MODEL", "square_features", "coefficient_bits", "geometry_bits", "best_directions"]
 
 #: The paper's Lagrange multiplier (Le Pennec and Mallat 2004).
 LAMBDA = 3.0 / 28.0
@@ -45,7 +45,7 @@ LAMBDA = 3.0 / 28.0
 #: Rate model, in bits: [significance factor, cost per significant coefficient, cost per
 #: doubling of its bin index] for wavelet squares then for bandelet squares, then the
 #: geometry: [bits of a NULL leaf, bits of a direction flag].
-RATE_MODEL = np.array([0.80, 3.2, 1.6, 0.80, 3.2, 1.6, 0.3, 1.0])
+RATE_MODEL = np.array([0.42, 3.67, 0.96, 0.52, 4.36, 1.01, 0.3, 1.0])
 
 
 @njit(cache=True, inline="always")
@@ -56,44 +56,59 @@ def _log2_binomial(n: int, k: int) -> float:
 
 
 @njit(cache=True)
-def coefficient_bits(
-    values: np.ndarray, threshold: float, bandelet: bool, model: np.ndarray
-) -> tuple[float, float]:
-    """Quantization error and modelled bits of the coefficients of one square.
+def square_features(values: np.ndarray, threshold: float, k: int) -> tuple[float, float, float, float]:
+    """What the rate model of one square depends on, and its quantization error.
 
     Parameters
     ----------
     values : ndarray, shape (n,)
-        A wavelet square raveled (``bandelet=False``) or 1D Haar coefficients, coarse first.
+        A wavelet square raveled (``k = 0``) or the 1D coefficients of a bandelet square,
+        coarse first.
     threshold : float
         ``T``.
-    bandelet : bool
-        Selects the grouping and the constants of :data:`RATE_MODEL`.
-    model : ndarray
-        :data:`RATE_MODEL`.
+    k : int
+        0 for a wavelet square (one group), else the order of the 1D transform: its scales
+        ``[0, k), [k, 2k), [2k, 4k), ...`` are the groups.
 
     Returns
     -------
-    (squared error, bits)
+    (sum over groups of log2 binomial(n_g, significant_g), number of significant
+    coefficients, sum of log2 of their bin indices, squared quantization error)
     """
-    base = 3 if bandelet else 0
+    significance = 0.0
+    count = 0.0
+    magnitude = 0.0
     distortion = 0.0
-    bits = 0.0
     start = 0
     n = values.shape[0]
     while start < n:
-        # Groups: the whole square, or the Haar scales [0], [1], [2, 3], [4..7], ...
-        stop = n if not bandelet else (1 if start == 0 else 2 * start)
+        stop = n if k == 0 else (k if start == 0 else 2 * start)
         significant = 0
         for i in range(start, stop):
             distortion += quantization_error(values[i], threshold)
             m = bin_index(values[i], threshold)
             if m > 0:
                 significant += 1
-                bits += model[base + 1] + model[base + 2] * math.log2(m)
-        bits += model[base] * _log2_binomial(stop - start, significant)
+                magnitude += math.log2(m)
+        significance += _log2_binomial(stop - start, significant)
+        count += significant
         start = stop
-    return distortion, bits
+    return significance, count, magnitude, distortion
+
+
+@njit(cache=True)
+def coefficient_bits(values: np.ndarray, threshold: float, k: int, model: np.ndarray) -> tuple[float, float]:
+    """Quantization error and modelled bits of the coefficients of one square.
+
+    See :func:`square_features` for the arguments; ``model`` is :data:`RATE_MODEL`.
+
+    Returns
+    -------
+    (squared error, bits)
+    """
+    significance, count, magnitude, distortion = square_features(values, threshold, k)
+    base = 3 if k > 0 else 0
+    return distortion, model[base] * significance + model[base + 1] * count + model[base + 2] * magnitude
 
 
 def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, float]:
@@ -104,17 +119,20 @@ def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, fl
 
 @njit(cache=True, parallel=True)
 def _search(
-    subband: np.ndarray,
+    subbands: np.ndarray,
     width: int,
     orders: np.ndarray,
+    mats: np.ndarray,
     threshold: float,
     model: np.ndarray,
     null_bits: float,
     direction_bits: float,
     allow_directions: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
-    rows = subband.shape[0] // width
-    cols = subband.shape[1] // width
+    channels = subbands.shape[0]
+    order_1d = mats.shape[1] // 2
+    rows = subbands.shape[1] // width
+    cols = subbands.shape[2] // width
     n = width * width
     price = LAMBDA * threshold * threshold
     cost = np.empty((rows, cols))
@@ -122,20 +140,26 @@ def _search(
     for s in prange(rows * cols):
         r = s // cols
         c = s % cols
-        square = np.ascontiguousarray(
-            subband[r * width : (r + 1) * width, c * width : (c + 1) * width]
-        ).ravel()
-        distortion, bits = coefficient_bits(square, threshold, False, model)
-        best_cost = distortion + price * (bits + null_bits)
+        squares = np.empty((channels, n))
+        for k in range(channels):
+            squares[k] = subbands[k, r * width : (r + 1) * width, c * width : (c + 1) * width].ravel()
+        best_cost = price * null_bits
+        for k in range(channels):
+            distortion, bits = coefficient_bits(squares[k], threshold, 0, model)
+            best_cost += distortion + price * bits
         if allow_directions:
             signal = np.empty(n)
             tmp = np.empty(n)
             for d in range(orders.shape[0]):
-                for i in range(n):
-                    signal[i] = square[orders[d, i]]
-                haar_inplace(signal, tmp)
-                distortion, bits = coefficient_bits(signal, threshold, True, model)
-                candidate = distortion + price * (bits + direction_bits)
+                candidate = price * direction_bits
+                for k in range(channels):
+                    for i in range(n):
+                        signal[i] = squares[k, orders[d, i]]
+                    multiwavelet_inplace(signal, tmp, mats)
+                    distortion, bits = coefficient_bits(signal, threshold, order_1d, model)
+                    candidate += distortion + price * bits
+                    if candidate >= best_cost:
+                        break
                 if candidate < best_cost:
                     best_cost = candidate
                     best[r, c] = d
@@ -144,26 +168,33 @@ def _search(
 
 
 def best_directions(
-    subband: np.ndarray,
+    subbands: np.ndarray,
     width: int,
     threshold: float,
     *,
     allow_directions: bool = True,
+    transform_1d: str = "haar",
     model: np.ndarray = RATE_MODEL,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Best Lagrangian and direction of every square of ``width`` tiling ``subband``.
+    """Best Lagrangian and direction of every square of ``width`` tiling ``subbands``.
+
+    The channels of an image share their geometry (a crease is at the same place in the
+    three components of a normal map), so the Lagrangian of a square for a direction is
+    summed over the channels.
 
     Parameters
     ----------
-    subband : ndarray, shape (h, w), float64
-        Wavelet coefficients; only the top-left ``floor(h/width)*width x floor(w/width)*width``
-        region is tiled.
+    subbands : ndarray, shape (C, h, w), float64
+        The same subband of each channel; only the top-left
+        ``floor(h/width)*width x floor(w/width)*width`` region is tiled.
     width : int
         Square width ``L``, a power of two >= 4.
     threshold : float
         ``T``.
     allow_directions : bool
         False prices NULL only (the wavelet baseline).
+    transform_1d : str
+        One of :data:`bandelets.bandeletize.TRANSFORMS_1D`.
 
     Returns
     -------
@@ -174,9 +205,10 @@ def best_directions(
     """
     null_bits, direction_bits = geometry_bits(width, model)
     return _search(
-        np.ascontiguousarray(subband, dtype=np.float64),
+        np.ascontiguousarray(subbands, dtype=np.float64),
         width,
         directions(width)[1],
+        alpert_matrices(width * width, TRANSFORMS_1D.index(transform_1d) + 1),
         float(threshold),
         model,
         null_bits,

@@ -3,17 +3,22 @@
 Both the encoder and the decoder derive the same :class:`Plan` from the image size, the
 number of levels and the quadtrees (which the decoder reads first). The approximation is
 coded first, then the detail subbands from the coarsest level to the finest, H, V, D
-within a level. Inside a subband the leaves of the quadtree come in coding order
-(:meth:`bandelets.quadtree.Quadtree.leaves`), then the strip that the root squares do not
-cover.
+within a level. Inside a subband:
 
-* A wavelet coefficient (approximation, NULL square, strip) is coded in raster order of
-  its square; its neighbours are the left, upper, upper-left and upper-right coefficients
-  of its subband, and its parent the coefficient at half its position in the next coarser
-  subband of the same orientation.
-* A bandelet square codes its 1D Haar coefficients coarse first (paper, step (9)); their
-  neighbours are the previous coefficients of the same 1D scale, and their parents at the
-  two coarser 1D scales. They are stored in zig-zag order inside the square.
+1. the bandelet squares, in the coding order of the quadtree's leaves, each one's 1D
+   coefficients coarse first (paper, step (9)); a coefficient's neighbours are the previous
+   coefficients of its 1D scale and its parents at the two coarser 1D scales. They are
+   stored in zig-zag order inside the square.
+2. then every other coefficient of the subband in raster order, as a plain wavelet coder
+   would: neighbours are the left, upper, upper-left and upper-right coefficients, the
+   parent the coefficient at half its position in the next coarser subband of the same
+   orientation.
+
+Between the two, the codec replaces what the context models see inside the bandelet
+squares by the (quantized) wavelet coefficients their decoded bandelet coefficients give
+back (:attr:`Plan.stages`): the wavelet coefficients around a bandelet square, and the
+finer subbands below it, then read meaningful neighbours and parents instead of 1D
+coefficients laid out in zig-zag.
 
 The context class of a coefficient (:data:`bandelets.entropy.N_CLASSES` of them) tells the
 coder which statistics it shares: approximation; wavelet detail by orientation and level;
@@ -26,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bandeletize import TRANSFORMS_1D
 from .geometry import zigzag
 from .quadtree import Quadtree
 from .wavelets import subband_slices
@@ -45,11 +51,16 @@ class Plan:
         Context class of each.
     neighbours : ndarray of int64, shape (H*W, 5)
         Positions of its context neighbours, -1 where absent: two near, two farther, parent.
+    stages : list of (int, int)
+        ``(stop, subband)``: once the coefficients before ``stop`` are coded, the bandelet
+        squares of detail subband number ``subband`` are complete and their wavelet
+        coefficients can be put back for the contexts that follow.
     """
 
     order: np.ndarray
     classes: np.ndarray
     neighbours: np.ndarray
+    stages: list
 
 
 def _raster_part(rows, cols, box, parent_box, width, cls):
@@ -74,16 +85,16 @@ def _raster_part(rows, cols, box, parent_box, width, cls):
     return at(rows, cols, True), np.full(rows.shape, cls), neighbours
 
 
-def _bandelet_part(rows, cols, square, box, width):
-    """1D coefficients of bandelet squares of side ``square`` at subband ``rows, cols``."""
+def _bandelet_part(rows, cols, square, box, width, k):
+    """1D coefficients (order ``k``) of bandelet squares of side ``square`` at ``rows, cols``."""
     y0, x0 = box[:2]
     n = square * square
     index = np.arange(n)
-    scale = np.zeros(n, np.int64)
-    scale[1:] = np.floor(np.log2(index[1:])).astype(np.int64)
-    finest = int(np.log2(n)) - 1
-    classes = np.where(index == 0, 14, 10 + np.minimum(finest - scale, 3))
-    first = np.where(index == 0, 0, 1 << scale)  # first index of each 1D scale
+    scale = np.zeros(n, np.int64)  # 1D scale: wavelets of scale s start at k 2**s
+    scale[k:] = np.floor(np.log2(index[k:] // k)).astype(np.int64)
+    finest = int(np.log2(n // k)) - 1
+    classes = np.where(index < k, 14, 10 + np.minimum(finest - scale, 3))
+    first = np.where(index < k, 0, k << scale)  # first index of each 1D scale
 
     def rel(j, ok):
         return np.where(ok, j, -1)
@@ -91,10 +102,10 @@ def _bandelet_part(rows, cols, square, box, width):
     relative = np.stack(
         [
             rel(index - 1, index - 1 >= first),
-            rel(index // 2, index >= 2),
+            rel(index // 2, index >= 2 * k),
             rel(index - 2, index - 2 >= first),
-            rel(index // 2 + 1, (index >= 2) & (index // 2 + 1 < first)),
-            rel(index // 4, index >= 4),
+            rel(index // 2 + 1, (index >= 2 * k) & (index // 2 + 1 < first)),
+            rel(index // 4, index >= 4 * k),
         ],
         axis=-1,
     )
@@ -113,7 +124,7 @@ def _subband_box(shape, level, orientation):
     return ((0, w), (h, 0), (h, w))[orientation] + (h, w)
 
 
-def coding_plan(shape: tuple[int, int], levels: int, trees: list[Quadtree]) -> Plan:
+def coding_plan(shape: tuple[int, int], levels: int, trees: list[Quadtree], transform_1d: str) -> Plan:
     """Coding plan of a padded channel of ``shape`` with its detail-subband quadtrees.
 
     Parameters
@@ -124,41 +135,40 @@ def coding_plan(shape: tuple[int, int], levels: int, trees: list[Quadtree]) -> P
         Wavelet levels.
     trees : list of Quadtree
         One per detail subband, in :func:`bandelets.wavelets.subband_slices` order.
+    transform_1d : str
+        The 1D transform of the bandelet squares (sets where its scales start).
     """
+    k = TRANSFORMS_1D.index(transform_1d) + 1
     width = shape[1]
-    pieces = []  # (rank key, positions, classes, neighbours), flattened per piece
     h, w = shape[0] >> levels, shape[1] >> levels
     rows, cols = np.divmod(np.arange(h * w), w)
-    pieces.append(_raster_part(rows, cols, (0, 0, h, w), None, width, 0))
-    for (level, orientation, _), tree in zip(subband_slices(shape, levels), trees, strict=True):
+    pieces = [_raster_part(rows, cols, (0, 0, h, w), None, width, 0)]
+    stages, coded = [], h * w
+    for index, ((level, orientation, _), tree) in enumerate(zip(subband_slices(shape, levels), trees,
+                                                                  strict=True)):
         box = _subband_box(shape, level, orientation)
         parent = _subband_box(shape, level + 1, orientation) if level < levels else None
-        cls = 1 + orientation * 3 + min(level - 1, 2)
-        lr, lc, lw, ld = tree.leaves()
-        parts = []  # (leaf rank, within-leaf index, part)
-        rank = np.arange(lr.shape[0])
-        for size in np.unique(lw):
-            for bandelet in (False, True):
-                pick = (lw == size) & ((ld >= 0) == bandelet)
-                if not pick.any():
-                    continue
-                if bandelet:
-                    part = _bandelet_part(lr[pick], lc[pick], int(size), box, width)
-                else:
-                    sr, sc = np.divmod(np.arange(size * size), size)
-                    part = _raster_part(
-                        lr[pick, None] + sr[None, :], lc[pick, None] + sc[None, :], box, parent, width, cls
-                    )
-                parts.append((rank[pick], part))
+        top, left, sizes, dirs = tree.leaves()
+        in_square = np.zeros(box[2:], bool)
+        rank = np.arange(top.shape[0])
+        parts = []
+        for size in np.unique(sizes[dirs >= 0]):
+            pick = (sizes == size) & (dirs >= 0)
+            parts.append((rank[pick], _bandelet_part(top[pick], left[pick], int(size), box, width, k)))
+            for r0, c0 in zip(top[pick], left[pick], strict=True):
+                in_square[r0 : r0 + size, c0 : c0 + size] = True
         if parts:
             ranks = np.concatenate([np.repeat(r, p[0].shape[1]) for r, p in parts])
             inner = np.concatenate([np.tile(np.arange(p[0].shape[1]), len(r)) for r, p in parts])
-            merged = [np.concatenate([p[k].reshape(-1, *p[k].shape[2:]) for _, p in parts]) for k in range(3)]
-            order = np.lexsort((inner, ranks))
-            pieces.append(tuple(m[order] for m in merged))
-        covered_h, covered_w = tree.covered
-        sr, sc = np.divmod(np.arange(box[2] * box[3]), box[3])
-        strip = (sr >= covered_h) | (sc >= covered_w)
-        pieces.append(_raster_part(sr[strip], sc[strip], box, parent, width, cls))
-    order, classes, neighbours = (np.concatenate([p[k] for p in pieces]) for k in range(3))
-    return Plan(order.astype(np.int64), classes.astype(np.int64), neighbours.astype(np.int64))
+            sort = np.lexsort((inner, ranks))
+            merged = [np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort]
+                      for j in range(3)]
+            pieces.append(tuple(merged))
+            coded += merged[0].shape[0]
+            stages.append((coded, index))
+        sr, sc = np.nonzero(~in_square)
+        cls = 1 + orientation * 3 + min(level - 1, 2)
+        pieces.append(_raster_part(sr, sc, box, parent, width, cls))
+        coded += sr.shape[0]
+    order, classes, neighbours = (np.concatenate([p[j] for p in pieces]) for j in range(3))
+    return Plan(order.astype(np.int64), classes.astype(np.int64), neighbours.astype(np.int64), stages)
