@@ -111,7 +111,7 @@ def _rows(x: np.ndarray, mats: np.ndarray, inverse: bool) -> np.ndarray:
     return out
 
 
-def transform_rows(x: np.ndarray, kind: str = "haar", inverse: bool = False) -> np.ndarray:
+def transform_rows(x: np.ndarray, kind: str = "alpert2", inverse: bool = False) -> np.ndarray:
     """:func:`multiwavelet_inplace` (or its inverse) of every row of ``x``, shape (m, n)."""
     k = TRANSFORMS_1D.index(kind) + 1
     return _rows(np.ascontiguousarray(x, dtype=np.float64), alpert_matrices(x.shape[1], k), inverse)
@@ -133,7 +133,7 @@ def _square_groups(tree):
             yield int(width), int(d), rows, cols
 
 
-def bandeletize(subband: np.ndarray, tree, kind: str = "haar") -> np.ndarray:
+def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     """Bandelet coefficients of one subband for a given quadtree and directions.
 
     Parameters
@@ -161,7 +161,7 @@ def bandeletize(subband: np.ndarray, tree, kind: str = "haar") -> np.ndarray:
     return out
 
 
-def debandeletize(coefficients: np.ndarray, tree, kind: str = "haar") -> np.ndarray:
+def debandeletize(coefficients: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     """Inverse of :func:`bandeletize`: wavelet coefficients of the subband."""
     out = coefficients.copy()
     for width, d, rows, cols in _square_groups(tree):

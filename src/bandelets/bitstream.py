@@ -75,7 +75,7 @@ class Header:
     levels: int
     threshold: float
     depth: int = 0
-    transform_1d: str = "haar"
+    transform_1d: str = "alpert2"
 
 
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:

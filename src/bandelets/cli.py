@@ -47,6 +47,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--kind", choices=KINDS, default="image",
                    help="image (default), normal-map (RGB vectors, renormalised) or geometry-image")
     p.add_argument("--wavelet", default="cdf97", help="cdf97 (default), haar, db2, db4, db6 or db8")
+    p.add_argument("--transform-1d", choices=("alpert2", "haar"), default="alpert2",
+                   help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar")
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
@@ -84,7 +86,7 @@ def _encode(args) -> None:
     if all(v is None for v in target.values()):
         target["bpp"] = 1.0
     data = encode(array, **target, transform=args.transform, kind=args.kind, wavelet=args.wavelet,
-                  depth=depth, progress=sys.stderr.isatty())
+                  transform_1d=args.transform_1d, depth=depth, progress=sys.stderr.isatty())
     write_atomic(args.output, data)
 
 
@@ -118,6 +120,7 @@ def _info(args) -> None:
         "transform": header.transform,
         "wavelet": header.wavelet,
         "levels": header.levels,
+        "transform_1d": header.transform_1d,
         "threshold": header.threshold,
         "bytes": len(data),
         "bpp": bits_per_pixel(len(data), (header.height, header.width)),

@@ -16,11 +16,11 @@ import numpy as np
 from . import entropy
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
 from .bitstream import KINDS, TRANSFORMS, FormatError, Header, pack, unpack
-from .geometry import directions
 from .lagrangian import LAMBDA, best_directions
 from .layout import coding_plan
-from .quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
+from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .quantize import MAX_INDEX, dequantize, quantize
+from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_trees, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
 __all__ = ["Bandelets", "forward", "inverse", "encode_at_threshold", "decode", "check_image"]
@@ -53,7 +53,7 @@ class Bandelets:
     wavelet: str
     levels: int
     threshold: float
-    transform_1d: str = "haar"
+    transform_1d: str = "alpert2"
 
 
 def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
@@ -69,7 +69,7 @@ def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, t
     ``coefficients`` holds the wavelet coefficients of every channel; they share one geometry.
     """
     trees = []
-    for _, _, where in subband_slices(coefficients[0].shape, levels):
+    for index, (_, orientation, where) in enumerate(subband_slices(coefficients[0].shape, levels)):
         subbands = np.stack([c[where] for c in coefficients])
         root = root_width(subbands.shape[1:])
         if transform == "wavelet" or root == 0:
@@ -77,9 +77,11 @@ def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, t
             continue
         covered = subbands[:, : subbands.shape[1] // root * root, : subbands.shape[2] // root * root]
         costs, dirs = [], []
+        reference = reference_of(trees, index, orientation)
         width = MIN_WIDTH
         while width <= root:
-            cost, d = best_directions(covered, width, threshold, transform_1d=transform_1d)
+            predicted = predicted_directions(reference, (covered.shape[1] // width, covered.shape[2] // width), width)
+            cost, d = best_directions(covered, width, threshold, transform_1d=transform_1d, predicted=predicted)
             costs.append(cost)
             dirs.append(d)
             width *= 2
@@ -102,7 +104,7 @@ def forward(
     wavelet: str = "cdf97",
     levels: int | None = None,
     transform: str = "bandelet",
-    transform_1d: str = "haar",
+    transform_1d: str = "alpert2",
 ) -> Bandelets:
     """Bandelet transform of one channel, with the basis chosen for threshold ``T``.
 
@@ -119,8 +121,9 @@ def forward(
         Wavelet levels (default :func:`bandelets.wavelets.max_levels`).
     transform : {"bandelet", "wavelet"}
         ``"wavelet"`` keeps every square NULL.
-    transform_1d : {"haar", "alpert2"}
-        1D transform along the directions (:data:`bandelets.bandeletize.TRANSFORMS_1D`).
+    transform_1d : {"alpert2", "haar"}
+        1D transform along the directions (:data:`bandelets.bandeletize.TRANSFORMS_1D`):
+        Alpert's multiwavelet with two vanishing moments (default) or the paper's Haar.
 
     Returns
     -------
@@ -139,59 +142,6 @@ def inverse(b: Bandelets) -> np.ndarray:
     """Inverse bandelet transform: the channel, shape ``b.shape``."""
     c = _apply_trees(b.coefficients, b.levels, b.trees, debandeletize, b.transform_1d)
     return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
-
-
-# ---------------------------------------------------------------------------------------------
-# Entropy coding of the geometry: quadtree splits and directions.
-
-_MAX_TREE_LEVELS = 4  # root widths up to 32
-
-
-def _direction_bits(level: int) -> int:
-    return int(np.ceil(np.log2(directions(MIN_WIDTH << level)[1].shape[0])))
-
-
-_DIRECTION_BASES = np.cumsum([_MAX_TREE_LEVELS] + [1 << (_direction_bits(k)) for k in range(_MAX_TREE_LEVELS)])
-
-
-def _code_tree(splits: entropy.Coder, dirs: entropy.Coder, tree: Quadtree | None,
-               shape: tuple[int, int]) -> Quadtree:
-    """Code (``tree`` given) or decode (``tree`` None) the quadtree of a subband of ``shape``."""
-    root = root_width(shape)
-    if root == 0:
-        return flat_quadtree(shape, 0)
-    n_levels = root.bit_length() - MIN_WIDTH.bit_length() + 1
-    rows, cols = shape[0] // root * root, shape[1] // root * root
-    cells = [(rows // (MIN_WIDTH << k), cols // (MIN_WIDTH << k)) for k in range(n_levels)]
-    leaf = [np.zeros(c, bool) for c in cells]
-    opened = np.ones(cells[-1], bool)
-    for level in range(n_levels - 1, -1, -1):
-        if level == 0:
-            leaf[0] = opened
-            break
-        split = np.zeros(int(opened.sum()), np.int64) if tree is None else ~tree.leaf[level][opened]
-        split = entropy.code_flags(splits, split, np.full(split.shape, level))
-        leaf[level][opened] = split == 0
-        opened = (opened & ~leaf[level]).repeat(2, axis=0).repeat(2, axis=1)
-    direction = [np.full(c, -1, np.int64) for c in cells]
-    decoded = Quadtree(root, tuple(leaf), tuple(direction))
-    r, c, w, d = (tree or decoded).leaves()
-    level = np.log2(w // MIN_WIDTH).astype(np.int64)
-    has = entropy.code_flags(dirs, d >= 0 if tree else np.zeros(r.shape, np.int64), level)
-    pick = has == 1
-    n_bits = np.array([_direction_bits(k) for k in range(n_levels)])[level[pick]]
-    sym = entropy.code_symbols(dirs, np.maximum(d[pick], 0) if tree else np.zeros(n_bits.shape),
-                               _DIRECTION_BASES[level[pick]], n_bits)
-    if tree is not None:
-        return tree
-    n_dirs = np.array([directions(MIN_WIDTH << k)[1].shape[0] for k in range(n_levels)])
-    if np.any(sym >= n_dirs[level[pick]]):
-        raise FormatError("corrupt .bdl file: direction index out of range")
-    for k in range(n_levels):
-        at = pick & (level == k)
-        width = MIN_WIDTH << k
-        direction[k][r[at] // width, c[at] // width] = sym[level[pick] == k]
-    return decoded
 
 
 def code_channel(coder: entropy.Coder, q: np.ndarray, plan, trees: list, header: Header) -> np.ndarray:
@@ -221,7 +171,7 @@ def code_channel(coder: entropy.Coder, q: np.ndarray, plan, trees: list, header:
 
 
 def _new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
-    sizes = (_MAX_TREE_LEVELS, int(_DIRECTION_BASES[-1]), entropy.coefficient_contexts())
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS, entropy.coefficient_contexts())
     return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
 
 
@@ -290,8 +240,7 @@ def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) 
     trees = _best_trees(wavelet_coefficients, header.levels, threshold, header.transform, header.transform_1d)
     shape = wavelet_coefficients[0].shape
     if header.transform == "bandelet":
-        for (_, _, where), tree in zip(subband_slices(shape, header.levels), trees, strict=True):
-            _code_tree(splits, dirs, tree, wavelet_coefficients[0][where].shape)
+        code_trees(splits, dirs, trees, shape, header.levels)
     plan = coding_plan(shape, header.levels, trees, header.transform_1d)
     for c in wavelet_coefficients:
         b = _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d)
@@ -338,12 +287,10 @@ def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.nda
     band_shapes = [(r.stop - r.start, c.stop - c.start) for *_, (r, c) in subband_slices(shape, header.levels)]
     channels = []
     try:
-        trees = [
-            _code_tree(splits, dirs, None, band)
-            if header.transform == "bandelet"
-            else flat_quadtree(band, root_width(band))
-            for band in band_shapes
-        ]
+        if header.transform == "bandelet":
+            trees = code_trees(splits, dirs, None, shape, header.levels)
+        else:
+            trees = [flat_quadtree(band, root_width(band)) for band in band_shapes]
         plan = coding_plan(shape, header.levels, trees, header.transform_1d)
         for _ in range(header.channels):
             q = np.zeros(shape[0] * shape[1], np.int32)
@@ -371,7 +318,7 @@ def encode(
     transform: str = "bandelet",
     kind: str = "image",
     wavelet: str = "cdf97",
-    transform_1d: str = "haar",
+    transform_1d: str = "alpert2",
     depth: int = 0,
     progress: bool = False,
 ) -> bytes:
@@ -390,7 +337,7 @@ def encode(
         A normal map is renormalised to unit vectors before coding and after decoding.
     wavelet : str
         See :data:`bandelets.wavelets.WAVELETS`.
-    transform_1d : {"haar", "alpert2"}
+    transform_1d : {"alpert2", "haar"}
         1D transform along the directions.
     depth : {0, 8, 16}
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
@@ -407,7 +354,7 @@ def encode(
 
 
 def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="bandelet",
-                      kind="image", wavelet="cdf97", transform_1d="haar", depth=0,
+                      kind="image", wavelet="cdf97", transform_1d="alpert2", depth=0,
                       progress=False) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
     from . import metrics, ratecontrol

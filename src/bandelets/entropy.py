@@ -28,6 +28,7 @@ __all__ = [
     "CorruptStream",
     "N_CLASSES",
     "code_flags",
+    "code_positive",
     "code_symbols",
     "code_coefficients",
 ]
@@ -51,8 +52,8 @@ _COST_SCALE = 65536.0
 _COST = np.rint(-np.log2((np.arange(4096) + 0.5) / 4096) * _COST_SCALE).astype(np.int64)
 
 #: Coefficient context classes: 0 approximation, 1-9 wavelet (orientation x level bucket),
-#: 10-14 bandelet (1D scale bucket).
-N_CLASSES = 15
+#: 10-24 bandelet (square width 4, 8, 16+ x 1D scale bucket).
+N_CLASSES = 25
 _N_SUM = 8
 _SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
@@ -256,6 +257,49 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
 
 
 @njit(cache=True)
+def _elias_gamma(st, buf, probs, counts, half, r, base, decoding):
+    """Code ``r >= 1``: adaptive unary prefix ``floor(log2 r)`` (contexts ``base + i``), then
+    its low bits equiprobable. Returns ``r`` (decoded when decoding), -1 if corrupt."""
+    n_prefix = 0
+    while (r >> (n_prefix + 1)) > 0:
+        n_prefix += 1
+    e = 0
+    while True:
+        ctx = base + min(e, _EG_PREFIX - 1)
+        if _code_bit(st, buf, probs, counts, ctx, 1 if e < n_prefix else 0, decoding) == 0:
+            break
+        e += 1
+        if e > _MAX_PREFIX:
+            return -1
+    value = 1
+    for b in range(e - 1, -1, -1):
+        value = 2 * value + _code_raw_bit(st, buf, (r >> b) & 1, decoding, half)
+    return value
+
+
+@njit(cache=True)
+def _positive(st, buf, probs, counts, half, values, bases, decoding):
+    for i in range(values.shape[0]):
+        values[i] = _elias_gamma(st, buf, probs, counts, half, values[i], bases[i], decoding)
+        if values[i] < 0:
+            return -1
+    return 0
+
+
+def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.ndarray:
+    """Code integers ``>= 1`` (Elias-gamma with an adaptive prefix in contexts ``base + 0..19``).
+
+    Returns the values (decoded when decoding; pass ones).
+    """
+    values = np.array(values, np.int64)
+    coder.reserve(8 * values.shape[0] + 16)
+    if _positive(coder.state, coder.buf, coder.probs, coder.counts, _EQUIPROBABLE.copy(), values,
+                 np.asarray(bases, np.int64), coder.decoding) != 0:
+        raise CorruptStream("coded integer stream is corrupt")
+    return values
+
+
+@njit(cache=True)
 def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes, neighbours, decoding):
     mags = np.zeros(5, np.int64)
     for i in range(order.shape[0]):
@@ -264,8 +308,7 @@ def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes,
         cls = classes[i]
         for k in range(5):
             j = neighbours[i, k]
-            if j >= 0:
-                mags[k] = min(abs(known[j]), 2)
+            mags[k] = min(abs(known[j]), 2) if j >= 0 else 0
         total = 2 * mags[0] + 2 * mags[1] + mags[2] + mags[3]
         near = _SUM_BUCKET[total]
         m = abs(q[at])
@@ -277,24 +320,10 @@ def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes,
         near5 = min(near, 4)
         if _code_bit(st, buf, probs, counts, _GT1 + cls * 5 + near5, 1 if m > 1 else 0, decoding):
             if _code_bit(st, buf, probs, counts, _GT2 + cls * 5 + near5, 1 if m > 2 else 0, decoding):
-                # Exp-Golomb (order 0) of m - 3: adaptive unary prefix, equiprobable suffix.
-                r = m - 2
-                n_prefix = 0
-                while (r >> (n_prefix + 1)) > 0:
-                    n_prefix += 1
-                e = 0
-                while True:
-                    more = 1 if e < n_prefix else 0
-                    ctx = _PREFIX + cls * _EG_PREFIX + min(e, _EG_PREFIX - 1)
-                    if _code_bit(st, buf, probs, counts, ctx, more, decoding) == 0:
-                        break
-                    e += 1
-                    if e > _MAX_PREFIX:
-                        return -1
-                value = 1
-                for b in range(e - 1, -1, -1):
-                    value = 2 * value + _code_raw_bit(st, buf, (r >> b) & 1, decoding, half)
-                m = value + 2
+                r = _elias_gamma(st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding)
+                if r < 0:
+                    return -1
+                m = r + 2
             else:
                 m = 2
         else:

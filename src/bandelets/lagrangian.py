@@ -117,6 +117,14 @@ def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, fl
     return float(model[6]), float(model[7] + math.log2(n_dirs))
 
 
+@njit(cache=True, inline="always")
+def _offset_bits(offset: int) -> float:
+    """Bits of a direction coded as an offset from the predicted one (see treecoding)."""
+    if offset == 0:
+        return 1.0
+    return 3.0 + 2.0 * math.floor(math.log2(offset))
+
+
 @njit(cache=True, parallel=True)
 def _search(
     subbands: np.ndarray,
@@ -127,9 +135,11 @@ def _search(
     model: np.ndarray,
     null_bits: float,
     direction_bits: float,
+    predicted: np.ndarray,
     allow_directions: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     channels = subbands.shape[0]
+    n_dirs = orders.shape[0]
     order_1d = mats.shape[1] // 2
     rows = subbands.shape[1] // width
     cols = subbands.shape[2] // width
@@ -150,8 +160,13 @@ def _search(
         if allow_directions:
             signal = np.empty(n)
             tmp = np.empty(n)
-            for d in range(orders.shape[0]):
-                candidate = price * direction_bits
+            guess = predicted[r, c]
+            for d in range(n_dirs):
+                if guess < 0:
+                    candidate = price * direction_bits
+                else:
+                    offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
+                    candidate = price * (model[7] + _offset_bits(offset))
                 for k in range(channels):
                     for i in range(n):
                         signal[i] = squares[k, orders[d, i]]
@@ -173,7 +188,8 @@ def best_directions(
     threshold: float,
     *,
     allow_directions: bool = True,
-    transform_1d: str = "haar",
+    transform_1d: str = "alpert2",
+    predicted: np.ndarray | None = None,
     model: np.ndarray = RATE_MODEL,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Best Lagrangian and direction of every square of ``width`` tiling ``subbands``.
@@ -195,6 +211,9 @@ def best_directions(
         False prices NULL only (the wavelet baseline).
     transform_1d : str
         One of :data:`bandelets.bandeletize.TRANSFORMS_1D`.
+    predicted : ndarray of int, shape (h // width, w // width), optional
+        Direction each square's geometry coder will predict (-1: none); directions near it
+        are priced at what coding them as an offset costs.
 
     Returns
     -------
@@ -204,6 +223,9 @@ def best_directions(
         The minimising direction index, -1 for NULL.
     """
     null_bits, direction_bits = geometry_bits(width, model)
+    shape = (subbands.shape[1] // width, subbands.shape[2] // width)
+    if predicted is None:
+        predicted = np.full(shape, -1, np.int64)
     return _search(
         np.ascontiguousarray(subbands, dtype=np.float64),
         width,
@@ -213,5 +235,6 @@ def best_directions(
         model,
         null_bits,
         direction_bits,
+        np.ascontiguousarray(predicted, dtype=np.int64),
         allow_directions,
     )

@@ -93,7 +93,7 @@ def _bandelet_part(rows, cols, square, box, width, k):
     scale = np.zeros(n, np.int64)  # 1D scale: wavelets of scale s start at k 2**s
     scale[k:] = np.floor(np.log2(index[k:] // k)).astype(np.int64)
     finest = int(np.log2(n // k)) - 1
-    classes = np.where(index < k, 14, 10 + np.minimum(finest - scale, 3))
+    classes = 10 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
     first = np.where(index < k, 0, k << scale)  # first index of each 1D scale
 
     def rel(j, ok):
