@@ -17,10 +17,10 @@ from . import entropy
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
 from .bitstream import KINDS, TRANSFORMS, FormatError, Header, pack, unpack
 from .lagrangian import LAMBDA, best_directions
-from .layout import coding_plan
+from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .quantize import MAX_INDEX, dequantize, quantize
-from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_trees, predicted_directions, reference_of
+from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
 __all__ = ["Bandelets", "forward", "inverse", "encode_at_threshold", "decode", "check_image"]
@@ -144,30 +144,76 @@ def inverse(b: Bandelets) -> np.ndarray:
     return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
 
 
-def code_channel(coder: entropy.Coder, q: np.ndarray, plan, trees: list, header: Header) -> np.ndarray:
-    """Code (or decode into ``q``) the coefficients of one channel, stage by stage.
+def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
+    """Activity of the coarser subband under squares of detail subband ``index``.
 
-    After the bandelet squares of a subband, the contexts are given the wavelet
-    coefficients those squares decode to (see :mod:`bandelets.layout`).
+    Returns ``(rows, cols, widths) -> bucket``: 0 if every already coded coefficient (all
+    channels) of the parent region is 0, 1 if their magnitudes sum to at most 2, 2 above;
+    3 for the coarsest detail level, whose parent is the approximation.
+    """
+    if index < 3:
+        return lambda rows, cols, widths: np.full(np.broadcast(rows, cols, widths).shape, 3)
+    where = subband_slices(shape, levels)[index - 3][2]
+    magnitude = sum(np.abs(k.reshape(shape)[where]) for k in known)
+    table = np.zeros((magnitude.shape[0] + 1, magnitude.shape[1] + 1), np.int64)
+    table[1:, 1:] = magnitude.cumsum(0).cumsum(1)
+
+    def bucket(rows, cols, widths):
+        rows, cols, widths = np.broadcast_arrays(rows, cols, widths)
+        r0, c0 = rows // 2, cols // 2
+        r1 = np.minimum((rows + widths) // 2, magnitude.shape[0])
+        c1 = np.minimum((cols + widths) // 2, magnitude.shape[1])
+        total = table[r1, c1] - table[r0, c1] - table[r1, c0] + table[r0, c0]
+        return np.where(total == 0, 0, np.where(total <= 2, 1, 2))
+
+    return bucket
+
+
+def code_image(coders: tuple, header: Header, trees: list | None = None,
+               quantized: list[np.ndarray] | None = None) -> tuple[list, list, list]:
+    """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
+
+    Order: the approximation of every channel, then subband by subband (coarse to fine,
+    H, V, D): its quadtree and directions (:mod:`bandelets.treecoding`), then for each
+    channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.layout`).
+    After a channel's bandelet squares, the contexts are given the wavelet coefficients those
+    squares decode to.
 
     Returns
     -------
-    ndarray, shape (H * W,): ideal code length of every coefficient, in bits.
+    trees : list of Quadtree
+    quantized : list of ndarray of int32, shape (H * W,), per channel
+    spent : list of ndarray of float64, shape (H * W,): ideal code length of every coefficient
     """
+    splits, dirs, coeffs = coders
     shape = padded_shape((header.height, header.width), header.levels)
-    known = np.zeros(q.shape, np.int64)
-    spent = np.zeros(q.shape)
-    bands = subband_slices(shape, header.levels)
-    start = 0
-    for stop, band in plan.stages + [(plan.order.shape[0], None)]:
-        entropy.code_coefficients(coder, q, plan, known, spent, start, stop)
-        start = stop
-        if band is not None:
-            where = bands[band][2]
-            view = known.reshape(shape)[where]
-            wavelets = debandeletize(dequantize(view, header.threshold), trees[band], header.transform_1d)
-            view[...] = np.clip(np.fix(wavelets / header.threshold), -MAX_INDEX, MAX_INDEX)
-    return spent
+    size = shape[0] * shape[1]
+    decoding = quantized is None
+    if decoding:
+        quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
+    known = [np.zeros(size, np.int64) for _ in quantized]
+    spent = [np.zeros(size) for _ in quantized]
+    approximation = approximation_plan(shape, header.levels)
+    for c, q in enumerate(quantized):
+        entropy.code_coefficients(coeffs, q, approximation, known[c], spent[c])
+    out = []
+    for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
+        band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
+        if header.transform == "bandelet":
+            tree = code_tree(splits, dirs, None if decoding else trees[index], band,
+                             reference_of(out, index, orientation), _activity(known, shape, header.levels, index))
+        else:
+            tree = flat_quadtree(band, root_width(band))
+        out.append(tree)
+        squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        for c, q in enumerate(quantized):
+            entropy.code_coefficients(coeffs, q, squares, known[c], spent[c])
+            if squares.order.size:
+                view = known[c].reshape(shape)[where]
+                wavelets = debandeletize(dequantize(view, header.threshold), tree, header.transform_1d)
+                view[...] = np.clip(np.fix(wavelets / header.threshold), -MAX_INDEX, MAX_INDEX)
+            entropy.code_coefficients(coeffs, q, rest, known[c], spent[c])
+    return out, quantized, spent
 
 
 def _new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
@@ -235,18 +281,12 @@ def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) 
     done once, the basis search and the coding once per threshold.
     """
     threshold = header.threshold
-    splits, dirs, coeffs = _new_coders()
-    sse = 0.0
     trees = _best_trees(wavelet_coefficients, header.levels, threshold, header.transform, header.transform_1d)
-    shape = wavelet_coefficients[0].shape
-    if header.transform == "bandelet":
-        code_trees(splits, dirs, trees, shape, header.levels)
-    plan = coding_plan(shape, header.levels, trees, header.transform_1d)
-    for c in wavelet_coefficients:
-        b = _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d)
-        q = quantize(b, threshold)
-        sse += float(np.sum((b - dequantize(q, threshold)) ** 2))
-        code_channel(coeffs, q.ravel(), plan, trees, header)
+    bandelets = [_apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in wavelet_coefficients]
+    quantized = [quantize(b, threshold) for b in bandelets]
+    sse = sum(float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True))
+    splits, dirs, coeffs = coders = _new_coders()
+    code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse)
 
@@ -282,27 +322,19 @@ def decode(data: bytes, **limits) -> np.ndarray:
 
 def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack`."""
-    splits, dirs, coeffs = _new_coders(streams)
+    coders = _new_coders(streams)
     shape = padded_shape((header.height, header.width), header.levels)
-    band_shapes = [(r.stop - r.start, c.stop - c.start) for *_, (r, c) in subband_slices(shape, header.levels)]
-    channels = []
     try:
-        if header.transform == "bandelet":
-            trees = code_trees(splits, dirs, None, shape, header.levels)
-        else:
-            trees = [flat_quadtree(band, root_width(band)) for band in band_shapes]
-        plan = coding_plan(shape, header.levels, trees, header.transform_1d)
-        for _ in range(header.channels):
-            q = np.zeros(shape[0] * shape[1], np.int32)
-            code_channel(coeffs, q, plan, trees, header)
-            b = Bandelets(dequantize(q.reshape(shape), header.threshold), trees,
-                          (header.height, header.width), header.wavelet, header.levels, header.threshold,
-                          header.transform_1d)
-            channels.append(inverse(b))
-        for coder in (splits, dirs, coeffs):
+        trees, quantized, _ = code_image(coders, header)
+        for coder in coders:
             coder.check()
     except entropy.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
+    channels = [
+        inverse(Bandelets(dequantize(q.reshape(shape), header.threshold), trees, (header.height, header.width),
+                          header.wavelet, header.levels, header.threshold, header.transform_1d))
+        for q in quantized
+    ]
     out = np.stack(channels, axis=-1)
     if header.kind == "normal-map":
         out = _renormalise(out)
@@ -376,19 +408,24 @@ def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="
                         transform_1d)
         return encode_at_threshold(coefficients, header)
 
-    t_max = 2.0 * max(float(np.max(np.abs(c))) for c in coefficients) + 1e-300
+    magnitudes = np.sort(np.abs(np.concatenate([c.ravel() for c in coefficients])))[::-1]
+    t_max = 2.0 * float(magnitudes[0]) + 1e-300
     if threshold is not None:
         return encode_at(float(threshold))
     if bpp is not None:
         if not (np.isfinite(bpp) and bpp > 0):
             raise ValueError(f"bpp must be a positive number, got {bpp}")
         target = int(bpp * x.shape[0] * x.shape[1] / 8)
-        return ratecontrol.for_size(encode_at, target, t_max, progress)
+        # Start where about one coefficient in six bits of the budget is significant.
+        t_guess = float(magnitudes[min(max(target * 8 // 6, 1), magnitudes.size - 1)]) or t_max / 1e3
+        return ratecontrol.for_size(encode_at, target, t_max, t_guess, progress)
     if not np.isfinite(psnr):
         raise ValueError(f"psnr must be a finite number, got {psnr}")
     reference = x[..., 0] if x.shape[2] == 1 else x
+    # Start where a uniform quantizer's error would meet the target.
+    t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
 
     def quality(data: bytes) -> float:
         return metrics.psnr(reference, decode(data), kind)
 
-    return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, progress)
+    return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, t_guess, progress)

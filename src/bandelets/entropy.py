@@ -344,9 +344,8 @@ def coefficient_contexts() -> int:
     return _N_COEFF_CONTEXTS
 
 
-def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spent: np.ndarray,
-                      start: int, stop: int) -> None:
-    """Code the quantized coefficients ``plan.order[start:stop]`` of one channel.
+def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spent: np.ndarray) -> None:
+    """Code the quantized coefficients ``plan.order`` of one channel.
 
     Parameters
     ----------
@@ -354,24 +353,21 @@ def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spen
         A coder made with :func:`coefficient_contexts` contexts.
     q : ndarray of int32, shape (H * W,)
         Signed bin indices, raveled Mallat layout. Filled in when decoding (pass zeros).
-    plan : bandelets.layout.Plan
-        Coding order, context class and neighbour positions of every coefficient.
+    plan : bandelets.layout.Segment
+        Coding order, context class and neighbour positions of the coefficients.
     known : ndarray of int64, shape (H * W,)
         What the context models see: the values coded so far (zeros elsewhere). Updated.
     spent : ndarray of float64, shape (H * W,)
         Receives the ideal code length of each coefficient coded, in bits (what the rate
         model of :mod:`bandelets.lagrangian` is fitted to).
-    start, stop : int
-        Range of the plan to code.
     """
     if not coder.decoding:
-        bits = np.abs(q[plan.order[start:stop]]).astype(np.int64)
+        bits = np.abs(q[plan.order]).astype(np.int64)
         nonzero = bits > 0
         lengths = np.zeros(bits.shape, np.int64)
         lengths[nonzero] = np.floor(np.log2(bits[nonzero])).astype(np.int64)
         coder.reserve(int(bits.shape[0] + np.sum(nonzero) * 6 + 2 * lengths.sum()) * 12 // 8 + 64)
     status = _coefficients(coder.state, coder.buf, coder.probs, coder.counts, _EQUIPROBABLE.copy(),
-                           q, known, spent, plan.order[start:stop], plan.classes[start:stop],
-                           plan.neighbours[start:stop], coder.decoding)
+                           q, known, spent, plan.order, plan.classes, plan.neighbours, coder.decoding)
     if status != 0:
         raise CorruptStream("coded coefficient stream is corrupt")

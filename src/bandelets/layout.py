@@ -1,7 +1,8 @@
 """The coding order of a channel's coefficients, and the neighbours their contexts read.
 
-Both the encoder and the decoder derive the same :class:`Plan` from the image size, the
-number of levels and the quadtrees (which the decoder reads first). The approximation is
+Both the encoder and the decoder derive the same :class:`Segment` lists from the image
+size, the number of levels and the quadtree of each subband (which the decoder reads just
+before the subband). The approximation is
 coded first, then the detail subbands from the coarsest level to the finest, H, V, D
 within a level. Inside a subband:
 
@@ -16,9 +17,8 @@ within a level. Inside a subband:
 
 Between the two, the codec replaces what the context models see inside the bandelet
 squares by the (quantized) wavelet coefficients their decoded bandelet coefficients give
-back (:attr:`Plan.stages`): the wavelet coefficients around a bandelet square, and the
-finer subbands below it, then read meaningful neighbours and parents instead of 1D
-coefficients laid out in zig-zag.
+back: the wavelet coefficients around a bandelet square, and the finer subbands below it,
+then read meaningful neighbours and parents instead of 1D coefficients laid out in zig-zag.
 
 The context class of a coefficient (:data:`bandelets.entropy.N_CLASSES` of them) tells the
 coder which statistics it shares: approximation; wavelet detail by orientation and level;
@@ -36,31 +36,26 @@ from .geometry import zigzag
 from .quadtree import Quadtree
 from .wavelets import subband_slices
 
-__all__ = ["Plan", "coding_plan"]
+__all__ = ["Segment", "approximation_plan", "subband_plan"]
 
 
 @dataclass(frozen=True)
-class Plan:
-    """Coding order of one channel.
+class Segment:
+    """Coding order of a run of coefficients of one channel.
 
     Attributes
     ----------
-    order : ndarray of int64, shape (H*W,)
+    order : ndarray of int64, shape (n,)
         Raveled Mallat-layout position of the i-th coded coefficient.
-    classes : ndarray of int64, shape (H*W,)
+    classes : ndarray of int64, shape (n,)
         Context class of each.
-    neighbours : ndarray of int64, shape (H*W, 5)
+    neighbours : ndarray of int64, shape (n, 5)
         Positions of its context neighbours, -1 where absent: two near, two farther, parent.
-    stages : list of (int, int)
-        ``(stop, subband)``: once the coefficients before ``stop`` are coded, the bandelet
-        squares of detail subband number ``subband`` are complete and their wavelet
-        coefficients can be put back for the contexts that follow.
     """
 
     order: np.ndarray
     classes: np.ndarray
     neighbours: np.ndarray
-    stages: list
 
 
 def _raster_part(rows, cols, box, parent_box, width, cls):
@@ -124,8 +119,22 @@ def _subband_box(shape, level, orientation):
     return ((0, w), (h, 0), (h, w))[orientation] + (h, w)
 
 
-def coding_plan(shape: tuple[int, int], levels: int, trees: list[Quadtree], transform_1d: str) -> Plan:
-    """Coding plan of a padded channel of ``shape`` with its detail-subband quadtrees.
+def _segment(part) -> Segment:
+    order, classes, neighbours = part
+    return Segment(order.astype(np.int64).ravel(), np.asarray(classes, np.int64).ravel(),
+                   neighbours.astype(np.int64).reshape(-1, 5))
+
+
+def approximation_plan(shape: tuple[int, int], levels: int) -> Segment:
+    """Coding order of the approximation subband of a padded channel of ``shape``."""
+    h, w = shape[0] >> levels, shape[1] >> levels
+    rows, cols = np.divmod(np.arange(h * w), w)
+    return _segment(_raster_part(rows, cols, (0, 0, h, w), None, shape[1], 0))
+
+
+def subband_plan(shape: tuple[int, int], levels: int, index: int, tree: Quadtree,
+                 transform_1d: str) -> tuple[Segment, Segment]:
+    """Coding order of detail subband number ``index``: its bandelet squares, then the rest.
 
     Parameters
     ----------
@@ -133,42 +142,34 @@ def coding_plan(shape: tuple[int, int], levels: int, trees: list[Quadtree], tran
         Padded channel size (multiples of ``2**levels``).
     levels : int
         Wavelet levels.
-    trees : list of Quadtree
-        One per detail subband, in :func:`bandelets.wavelets.subband_slices` order.
+    index : int
+        Position of the subband in :func:`bandelets.wavelets.subband_slices`.
+    tree : Quadtree
+        Its quadtree.
     transform_1d : str
         The 1D transform of the bandelet squares (sets where its scales start).
     """
     k = TRANSFORMS_1D.index(transform_1d) + 1
-    width = shape[1]
-    h, w = shape[0] >> levels, shape[1] >> levels
-    rows, cols = np.divmod(np.arange(h * w), w)
-    pieces = [_raster_part(rows, cols, (0, 0, h, w), None, width, 0)]
-    stages, coded = [], h * w
-    for index, ((level, orientation, _), tree) in enumerate(zip(subband_slices(shape, levels), trees,
-                                                                  strict=True)):
-        box = _subband_box(shape, level, orientation)
-        parent = _subband_box(shape, level + 1, orientation) if level < levels else None
-        top, left, sizes, dirs = tree.leaves()
-        in_square = np.zeros(box[2:], bool)
-        rank = np.arange(top.shape[0])
-        parts = []
-        for size in np.unique(sizes[dirs >= 0]):
-            pick = (sizes == size) & (dirs >= 0)
-            parts.append((rank[pick], _bandelet_part(top[pick], left[pick], int(size), box, width, k)))
-            for r0, c0 in zip(top[pick], left[pick], strict=True):
-                in_square[r0 : r0 + size, c0 : c0 + size] = True
-        if parts:
-            ranks = np.concatenate([np.repeat(r, p[0].shape[1]) for r, p in parts])
-            inner = np.concatenate([np.tile(np.arange(p[0].shape[1]), len(r)) for r, p in parts])
-            sort = np.lexsort((inner, ranks))
-            merged = [np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort]
-                      for j in range(3)]
-            pieces.append(tuple(merged))
-            coded += merged[0].shape[0]
-            stages.append((coded, index))
-        sr, sc = np.nonzero(~in_square)
-        cls = 1 + orientation * 3 + min(level - 1, 2)
-        pieces.append(_raster_part(sr, sc, box, parent, width, cls))
-        coded += sr.shape[0]
-    order, classes, neighbours = (np.concatenate([p[j] for p in pieces]) for j in range(3))
-    return Plan(order.astype(np.int64), classes.astype(np.int64), neighbours.astype(np.int64), stages)
+    level, orientation, _ = subband_slices(shape, levels)[index]
+    box = _subband_box(shape, level, orientation)
+    parent = _subband_box(shape, level + 1, orientation) if level < levels else None
+    top, left, sizes, dirs = tree.leaves()
+    in_square = np.zeros(box[2:], bool)
+    rank = np.arange(top.shape[0])
+    parts = []
+    for size in np.unique(sizes[dirs >= 0]):
+        pick = (sizes == size) & (dirs >= 0)
+        parts.append((rank[pick], _bandelet_part(top[pick], left[pick], int(size), box, shape[1], k)))
+        for r0, c0 in zip(top[pick], left[pick], strict=True):
+            in_square[r0 : r0 + size, c0 : c0 + size] = True
+    if parts:
+        ranks = np.concatenate([np.repeat(r, p[0].shape[1]) for r, p in parts])
+        inner = np.concatenate([np.tile(np.arange(p[0].shape[1]), len(r)) for r, p in parts])
+        sort = np.lexsort((inner, ranks))
+        squares = tuple(np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort]
+                        for j in range(3))
+    else:
+        squares = (np.zeros(0), np.zeros(0), np.zeros((0, 5)))
+    rows, cols = np.nonzero(~in_square)
+    rest = _raster_part(rows, cols, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2))
+    return _segment(squares), _segment(rest)

@@ -14,6 +14,8 @@ __all__ = ["quantize", "dequantize", "bin_index", "quantization_error"]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
+#: Where inside its bin a value is reconstructed: ``(q + RECONSTRUCTION) T``.
+RECONSTRUCTION = 0.5
 
 
 def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
@@ -38,7 +40,7 @@ def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
 def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
     """Reconstruction ``sign(q) (|q| + 1/2) T`` of signed bin indices (0 stays 0)."""
     q = q.astype(np.float64)
-    return np.sign(q) * (np.abs(q) + 0.5) * threshold
+    return np.sign(q) * (np.abs(q) + RECONSTRUCTION) * threshold
 
 
 @njit(cache=True, inline="always")
@@ -56,5 +58,5 @@ def quantization_error(x: float, threshold: float) -> float:
     a = abs(x)
     if a <= threshold:
         return a * a
-    e = a - (int(a / threshold) + 0.5) * threshold
+    e = a - (int(a / threshold) + RECONSTRUCTION) * threshold
     return e * e

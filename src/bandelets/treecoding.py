@@ -25,13 +25,15 @@ from . import entropy
 from .bitstream import FormatError
 from .geometry import directions
 from .quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
-from .wavelets import subband_slices
 
-__all__ = ["code_trees", "predicted_directions", "reference_of", "N_SPLIT_CONTEXTS", "N_DIRECTION_CONTEXTS"]
+__all__ = ["code_tree", "predicted_directions", "reference_of", "N_SPLIT_CONTEXTS", "N_DIRECTION_CONTEXTS"]
 
 _MAX_LEVELS = 4  # root widths up to 32
-N_SPLIT_CONTEXTS = 3 * _MAX_LEVELS
-_HAS, _ZERO, _SIGN, _OFFSET = 0, 3 * _MAX_LEVELS, 4 * _MAX_LEVELS, 5 * _MAX_LEVELS
+_N_ACTIVITY = 4
+N_SPLIT_CONTEXTS = 3 * _N_ACTIVITY * _MAX_LEVELS
+_HAS = 0
+_ZERO = _HAS + 3 * _N_ACTIVITY * _MAX_LEVELS
+_SIGN, _OFFSET = _ZERO + _MAX_LEVELS, _ZERO + 2 * _MAX_LEVELS
 _SYMBOL = _OFFSET + 20 * _MAX_LEVELS
 
 
@@ -98,7 +100,7 @@ def predicted_directions(reference: _Reference, cells: tuple[int, int], width: i
     return out.reshape(cells)
 
 
-def _code_splits(coder, tree, reference, shape, root):
+def _code_splits(coder, tree, reference, activity, shape, root):
     n_levels = root.bit_length() - MIN_WIDTH.bit_length() + 1
     rows, cols = shape[0] // root * root, shape[1] // root * root
     cells = [(rows // (MIN_WIDTH << k), cols // (MIN_WIDTH << k)) for k in range(n_levels)]
@@ -110,20 +112,21 @@ def _code_splits(coder, tree, reference, shape, root):
         ref_width, _ = reference.at(r * size + size // 2, c * size + size // 2)
         state = np.where(ref_width == 0, 2, (ref_width < size).astype(np.int64))
         split = np.zeros(r.shape, np.int64) if tree is None else ~tree.leaf[level][r, c]
-        split = entropy.code_flags(coder, split, 3 * level + state)
+        split = entropy.code_flags(coder, split, (3 * level + state) * _N_ACTIVITY + activity(r * size, c * size, size))
         leaf[level][r, c] = split == 0
         opened = (opened & ~leaf[level]).repeat(2, axis=0).repeat(2, axis=1)
     leaf[0] = opened
     return leaf, cells
 
 
-def _code_directions(coder, tree, reference, decoded):
+def _code_directions(coder, tree, reference, activity, decoded):
     rows, cols, widths, dirs = (tree or decoded).leaves()
     level = np.log2(widths // MIN_WIDTH).astype(np.int64)
     _, ref_angle = reference.at(rows + widths // 2, cols + widths // 2)
     predicted = ~np.isnan(ref_angle)
     state = np.where(reference.widths is None, 0, np.where(predicted, 2, 1))
-    has = entropy.code_flags(coder, dirs >= 0 if tree else np.zeros(rows.shape), _HAS + 3 * level + state)
+    context = _HAS + (3 * level + state) * _N_ACTIVITY + activity(rows, cols, widths)
+    has = entropy.code_flags(coder, dirs >= 0 if tree else np.zeros(rows.shape), context)
     out = np.full(rows.shape, -1, np.int64)
     for k in np.unique(level):
         width = MIN_WIDTH << int(k)
@@ -152,42 +155,36 @@ def _code_directions(coder, tree, reference, decoded):
     return rows, cols, widths, out
 
 
-def code_trees(splits: entropy.Coder, dirs: entropy.Coder, trees: list[Quadtree] | None,
-               shape: tuple[int, int], levels: int) -> list[Quadtree]:
-    """Code (``trees`` given) or decode (``trees`` None) the quadtrees of every detail subband.
+def code_tree(splits: entropy.Coder, dirs: entropy.Coder, tree: Quadtree | None, shape: tuple[int, int],
+              reference: _Reference, activity) -> Quadtree:
+    """Code (``tree`` given) or decode (``tree`` None) the quadtree of one detail subband.
 
     Parameters
     ----------
     splits, dirs : entropy.Coder
         Coders of the split flags (:data:`N_SPLIT_CONTEXTS`) and of the directions
         (:data:`N_DIRECTION_CONTEXTS`).
-    trees : list of Quadtree or None
-        One per detail subband in :func:`bandelets.wavelets.subband_slices` order.
-    shape : (H, W)
-        Padded channel size.
-    levels : int
-        Wavelet levels.
+    tree : Quadtree or None
+    shape : (h, w)
+        Size of the subband.
+    reference : see :func:`reference_of`
+    activity : callable
+        ``(rows, cols, widths) -> ints in [0, 4)``: how busy the already coded coefficients
+        under each square are (the squares of a quiet region never get a direction).
 
     Returns
     -------
-    list of Quadtree: ``trees``, or the decoded ones.
+    Quadtree: ``tree``, or the decoded one.
     """
-    out: list[Quadtree] = []
-    for index, (_, orientation, (r, c)) in enumerate(subband_slices(shape, levels)):
-        band = (r.stop - r.start, c.stop - c.start)
-        root = root_width(band)
-        if root == 0:
-            out.append(flat_quadtree(band, 0))
-            continue
-        reference = reference_of(out, index, orientation)
-        tree = None if trees is None else trees[index]
-        leaf, cells = _code_splits(splits, tree, reference, band, root)
-        decoded = Quadtree(root, tuple(leaf), tuple(np.full(c, -1, np.int64) for c in cells))
-        rows, cols, widths, found = _code_directions(dirs, tree, reference, decoded)
-        if tree is None:
-            for level, direction in enumerate(decoded.direction):
-                at = widths == MIN_WIDTH << level
-                direction[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
-            tree = decoded
-        out.append(tree)
-    return out
+    root = root_width(shape)
+    if root == 0:
+        return flat_quadtree(shape, 0)
+    leaf, cells = _code_splits(splits, tree, reference, activity, shape, root)
+    decoded = Quadtree(root, tuple(leaf), tuple(np.full(c, -1, np.int64) for c in cells))
+    rows, cols, widths, found = _code_directions(dirs, tree, reference, activity, decoded)
+    if tree is not None:
+        return tree
+    for level, direction in enumerate(decoded.direction):
+        at = widths == MIN_WIDTH << level
+        direction[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
+    return decoded
