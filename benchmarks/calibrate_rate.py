@@ -20,7 +20,6 @@ from bandelets import codec
 from bandelets.bitstream import Header
 from bandelets.geometry import zigzag
 from bandelets.lagrangian import RATE_MODEL, square_features
-from bandelets.layout import coding_plan
 from bandelets.quantize import quantize
 from bandelets.samples import crease_normal_map
 from bandelets.wavelets import max_levels, subband_slices
@@ -37,19 +36,25 @@ def collect(size: int, transform_1d: str, thresholds: list[float]):
         for transform in ("wavelet", "bandelet"):
             header = Header(size, size, 3, "normal-map", transform, "cdf97", levels, t, 0, transform_1d)
             trees = codec._best_trees(coefficients, levels, t, transform, transform_1d)
-            plan = coding_plan(coefficients[0].shape, levels, trees, transform_1d)
-            coder = codec._new_coders()[2]
-            for c in coefficients:
-                b = codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d)
-                spent = codec.code_channel(coder, quantize(b, t).ravel(), plan, trees, header).reshape(c.shape)
-                for (_, _, where), tree in zip(subband_slices(c.shape, levels), trees, strict=True):
+            bands = [
+                codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients
+            ]
+            _, _, spent = codec.code_image(
+                codec._new_coders(), header, trees, [quantize(b, t).ravel() for b in bands]
+            )
+            for b, ledger in zip(bands, spent, strict=True):
+                ledger = ledger.reshape(b.shape)
+                for (_, _, where), tree in zip(subband_slices(b.shape, levels), trees, strict=True):
                     for r, col, w, d in zip(*tree.leaves(), strict=True):
                         if (d >= 0) != (transform == "bandelet"):
                             continue
-                        sl = (slice(where[0].start + r, where[0].start + r + w),
-                              slice(where[1].start + col, where[1].start + col + w))
+                        sl = (
+                            slice(where[0].start + r, where[0].start + r + w),
+                            slice(where[1].start + col, where[1].start + col + w),
+                        )
                         values = b[sl].ravel()[zigzag(w)] if d >= 0 else b[sl].ravel()
-                        rows[transform].append((*square_features(values, t, k if d >= 0 else 0)[:3], spent[sl].sum()))
+                        features = square_features(values, t, k if d >= 0 else 0)[:3]
+                        rows[transform].append((*features, ledger[sl].sum()))
     return {name: np.array(r) for name, r in rows.items()}
 
 
@@ -63,9 +68,11 @@ def main() -> None:
         a = data[name]
         fit = np.linalg.lstsq(a[:, :3], a[:, 3], rcond=None)[0]
         current = a[:, :3] @ RATE_MODEL[3 * index : 3 * index + 3]
-        print(f"{name:9s} squares {len(a):6d}  fitted {np.round(fit, 3)}  actual bits {a[:, 3].sum():9.0f}  "
-              f"current model {current.sum():9.0f} ({current.sum() / a[:, 3].sum() - 1:+.1%})  "
-              f"per-square error {np.abs(current - a[:, 3]).sum() / a[:, 3].sum():.1%}")
+        print(
+            f"{name:9s} squares {len(a):6d}  fitted {np.round(fit, 3)}  actual bits {a[:, 3].sum():9.0f}  "
+            f"current model {current.sum():9.0f} ({current.sum() / a[:, 3].sum() - 1:+.1%})  "
+            f"per-square error {np.abs(current - a[:, 3]).sum() / a[:, 3].sum():.1%}"
+        )
 
 
 if __name__ == "__main__":

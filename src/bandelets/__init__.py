@@ -17,8 +17,14 @@ __all__ = ["Bandelets", "FormatError", "decode", "encode", "forward", "inverse"]
 __version__ = "0.1.0"
 
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
-_HOME = {"FormatError": "bitstream", "Bandelets": "codec", "decode": "codec", "encode": "codec",
-         "forward": "codec", "inverse": "codec"}
+_HOME = {
+    "FormatError": "bitstream",
+    "Bandelets": "codec",
+    "decode": "codec",
+    "encode": "codec",
+    "forward": "codec",
+    "inverse": "codec",
+}
 
 
 def __getattr__(name: str):

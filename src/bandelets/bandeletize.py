@@ -16,21 +16,28 @@ array and transformed together.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 from numba import njit
 
 from .geometry import directions, zigzag
 
-__all__ = ["TRANSFORMS_1D", "alpert_matrices", "multiwavelet_inplace", "transform_rows", "bandeletize", "debandeletize"]
+__all__ = [
+    "TRANSFORMS_1D",
+    "alpert_matrices",
+    "multiwavelet_inplace",
+    "transform_rows",
+    "bandeletize",
+    "debandeletize",
+]
 
 #: 1D transforms along the reordered samples, by the order ``k`` of their polynomial
 #: reproduction: Haar (constants) and Alpert's multiwavelet with ``k = 2`` (straight lines).
 TRANSFORMS_1D = ("haar", "alpert2")
 
 
-@lru_cache(maxsize=None)
+@cache
 def alpert_matrices(n: int, k: int) -> np.ndarray:
     """Orthogonal ``2k x 2k`` matrices of Alpert's multiwavelet on ``n`` uniform samples.
 

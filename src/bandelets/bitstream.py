@@ -41,6 +41,7 @@ __all__ = [
     "MAX_SIDE",
     "MAX_SAMPLES",
     "FormatError",
+    "HEADER_BYTES",
     "Header",
     "pack",
     "unpack",
@@ -55,6 +56,8 @@ MAX_SIDE = 16384
 MAX_SAMPLES = 2**28
 
 _FIXED = struct.Struct("<4sBBBBBBBBIId3I")
+#: Size of the smallest possible file: the fixed header and the CRC.
+HEADER_BYTES = _FIXED.size + 4
 _STREAMS = ("splits", "directions", "coefficients")
 
 
@@ -136,15 +139,20 @@ def unpack(
     lengths = fields[12:]
     checks = [
         (kind < len(KINDS), f"unknown kind code {kind}"),
+        (kind == 0 or channels == 3, f"a {KINDS[min(kind, 2)]} needs 3 channels, the file has {channels}"),
         (transform < len(TRANSFORMS), f"unknown transform code {transform}"),
         (wavelet < len(WAVELETS), f"unknown wavelet code {wavelet}"),
         (1 <= channels <= 4, f"bad channel count {channels}"),
         (depth in (0, 8, 16), f"bad sample depth {depth}"),
         (along < len(TRANSFORMS_1D), f"unknown 1D transform code {along}"),
-        (1 <= height <= max_side and 1 <= width <= max_side,
-         f"image size {width} x {height} exceeds the limit of {max_side} per side"),
-        (height * width * channels <= max_samples,
-         f"image of {height * width * channels} samples exceeds the limit of {max_samples}"),
+        (
+            1 <= height <= max_side and 1 <= width <= max_side,
+            f"image size {width} x {height} exceeds the limit of {max_side} per side",
+        ),
+        (
+            height * width * channels <= max_samples,
+            f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
+        ),
         (np.isfinite(threshold) and threshold > 0, f"bad threshold {threshold}"),
         (sum(lengths) == len(body) - _FIXED.size, "stream lengths do not match the file size"),
     ]
@@ -153,12 +161,20 @@ def unpack(
             raise FormatError(f"corrupt .bdl file: {message}")
     if not 1 <= levels <= MAX_LEVELS:
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
-    header = Header(height, width, channels, KINDS[kind], TRANSFORMS[transform], WAVELETS[wavelet],
-                    levels, threshold, depth, TRANSFORMS_1D[along])
+    header = Header(
+        height,
+        width,
+        channels,
+        KINDS[kind],
+        TRANSFORMS[transform],
+        WAVELETS[wavelet],
+        levels,
+        threshold,
+        depth,
+        TRANSFORMS_1D[along],
+    )
     streams, start = [], _FIXED.size
     for n in lengths:
         streams.append(bytes(data[start : start + n]))
         start += n
     return header, tuple(streams)
-
-

@@ -31,8 +31,11 @@ class _UsageError(Exception):
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="bandelets", description="Compress images, normal maps and geometry "
-                     "images with geometric bandelets (Peyre and Mallat 2005).")
+    parser = _Parser(
+        prog="bandelets",
+        description="Compress images, normal maps and geometry "
+        "images with geometric bandelets (Peyre and Mallat 2005).",
+    )
     parser.add_argument("--version", action="version", version="bandelets 0.1.0")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -44,11 +47,19 @@ def _build_parser() -> argparse.ArgumentParser:
     target.add_argument("--threshold", type=float, help="quantization threshold T")
     target.add_argument("--psnr", type=float, help="target PSNR in dB")
     p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
-    p.add_argument("--kind", choices=KINDS, default="image",
-                   help="image (default), normal-map (RGB vectors, renormalised) or geometry-image")
+    p.add_argument(
+        "--kind",
+        choices=KINDS,
+        default="image",
+        help="image (default), normal-map (RGB vectors, renormalised) or geometry-image",
+    )
     p.add_argument("--wavelet", default="cdf97", help="cdf97 (default), haar, db2, db4, db6 or db8")
-    p.add_argument("--transform-1d", choices=("alpert2", "haar"), default="alpert2",
-                   help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar")
+    p.add_argument(
+        "--transform-1d",
+        choices=("alpert2", "haar"),
+        default="alpert2",
+        help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar",
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
@@ -85,8 +96,16 @@ def _encode(args) -> None:
     target = {"bpp": args.bpp, "threshold": args.threshold, "psnr": args.psnr}
     if all(v is None for v in target.values()):
         target["bpp"] = 1.0
-    data = encode(array, **target, transform=args.transform, kind=args.kind, wavelet=args.wavelet,
-                  transform_1d=args.transform_1d, depth=depth, progress=sys.stderr.isatty())
+    data = encode(
+        array,
+        **target,
+        transform=args.transform,
+        kind=args.kind,
+        wavelet=args.wavelet,
+        transform_1d=args.transform_1d,
+        depth=depth,
+        progress=sys.stderr.isatty(),
+    )
     write_atomic(args.output, data)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import entropy
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
-from .bitstream import KINDS, TRANSFORMS, FormatError, Header, pack, unpack
+from .bitstream import HEADER_BYTES, KINDS, TRANSFORMS, FormatError, Header, pack, unpack
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
@@ -62,8 +62,9 @@ def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
     return np.pad(channel, ((0, rows - channel.shape[0]), (0, cols - channel.shape[1])), mode="symmetric")
 
 
-def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, transform: str,
-                transform_1d: str) -> list:
+def _best_trees(
+    coefficients: list[np.ndarray], levels: int, threshold: float, transform: str, transform_1d: str
+) -> list:
     """Best quadtree and directions of every detail subband (paper steps (3) to (8), (10)).
 
     ``coefficients`` holds the wavelet coefficients of every channel; they share one geometry.
@@ -80,8 +81,12 @@ def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, t
         reference = reference_of(trees, index, orientation)
         width = MIN_WIDTH
         while width <= root:
-            predicted = predicted_directions(reference, (covered.shape[1] // width, covered.shape[2] // width), width)
-            cost, d = best_directions(covered, width, threshold, transform_1d=transform_1d, predicted=predicted)
+            predicted = predicted_directions(
+                reference, (covered.shape[1] // width, covered.shape[2] // width), width
+            )
+            cost, d = best_directions(
+                covered, width, threshold, transform_1d=transform_1d, predicted=predicted
+            )
             costs.append(cost)
             dirs.append(d)
             width *= 2
@@ -89,8 +94,9 @@ def _best_trees(coefficients: list[np.ndarray], levels: int, threshold: float, t
     return trees
 
 
-def _apply_trees(coefficients: np.ndarray, levels: int, trees: list, transform_fn,
-                 transform_1d: str) -> np.ndarray:
+def _apply_trees(
+    coefficients: np.ndarray, levels: int, trees: list, transform_fn, transform_1d: str
+) -> np.ndarray:
     out = coefficients.copy()
     for (_, _, where), tree in zip(subband_slices(coefficients.shape, levels), trees, strict=True):
         out[where] = transform_fn(coefficients[where], tree, transform_1d)
@@ -134,8 +140,15 @@ def forward(
     levels = levels or max_levels(x.shape)
     c = wavedec(_pad(x, levels), wavelet, levels)
     trees = _best_trees([c], levels, threshold, transform, transform_1d)
-    return Bandelets(_apply_trees(c, levels, trees, bandeletize, transform_1d), trees, x.shape, wavelet,
-                     levels, threshold, transform_1d)
+    return Bandelets(
+        _apply_trees(c, levels, trees, bandeletize, transform_1d),
+        trees,
+        x.shape,
+        wavelet,
+        levels,
+        threshold,
+        transform_1d,
+    )
 
 
 def inverse(b: Bandelets) -> np.ndarray:
@@ -169,8 +182,9 @@ def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, inde
     return bucket
 
 
-def code_image(coders: tuple, header: Header, trees: list | None = None,
-               quantized: list[np.ndarray] | None = None) -> tuple[list, list, list]:
+def code_image(
+    coders: tuple, header: Header, trees: list | None = None, quantized: list[np.ndarray] | None = None
+) -> tuple[list, list, list]:
     """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
 
     Order: the approximation of every channel, then subband by subband (coarse to fine,
@@ -200,8 +214,14 @@ def code_image(coders: tuple, header: Header, trees: list | None = None,
     for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
         band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
         if header.transform == "bandelet":
-            tree = code_tree(splits, dirs, None if decoding else trees[index], band,
-                             reference_of(out, index, orientation), _activity(known, shape, header.levels, index))
+            tree = code_tree(
+                splits,
+                dirs,
+                None if decoding else trees[index],
+                band,
+                reference_of(out, index, orientation),
+                _activity(known, shape, header.levels, index),
+            )
         else:
             tree = flat_quadtree(band, root_width(band))
         out.append(tree)
@@ -211,7 +231,9 @@ def code_image(coders: tuple, header: Header, trees: list | None = None,
             if squares.order.size:
                 view = known[c].reshape(shape)[where]
                 wavelets = debandeletize(dequantize(view, header.threshold), tree, header.transform_1d)
-                view[...] = np.clip(np.fix(wavelets / header.threshold), -MAX_INDEX, MAX_INDEX)
+                # Hostile thresholds can overflow: the contexts must stay small integers.
+                bins = np.nan_to_num(np.fix(wavelets / header.threshold), posinf=MAX_INDEX, neginf=-MAX_INDEX)
+                view[...] = np.clip(bins, -MAX_INDEX, MAX_INDEX)
             entropy.code_coefficients(coeffs, q, rest, known[c], spent[c])
     return out, quantized, spent
 
@@ -282,9 +304,13 @@ def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) 
     """
     threshold = header.threshold
     trees = _best_trees(wavelet_coefficients, header.levels, threshold, header.transform, header.transform_1d)
-    bandelets = [_apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in wavelet_coefficients]
+    bandelets = [
+        _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in wavelet_coefficients
+    ]
     quantized = [quantize(b, threshold) for b in bandelets]
-    sse = sum(float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True))
+    sse = sum(
+        float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True)
+    )
     splits, dirs, coeffs = coders = _new_coders()
     code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
@@ -331,11 +357,22 @@ def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.nda
     except entropy.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
     channels = [
-        inverse(Bandelets(dequantize(q.reshape(shape), header.threshold), trees, (header.height, header.width),
-                          header.wavelet, header.levels, header.threshold, header.transform_1d))
+        inverse(
+            Bandelets(
+                dequantize(q.reshape(shape), header.threshold),
+                trees,
+                (header.height, header.width),
+                header.wavelet,
+                header.levels,
+                header.threshold,
+                header.transform_1d,
+            )
+        )
         for q in quantized
     ]
     out = np.stack(channels, axis=-1)
+    if not np.all(np.isfinite(out)):
+        raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
         out = _renormalise(out)
     return out[..., 0] if header.channels == 1 else out
@@ -380,14 +417,33 @@ def encode(
     -------
     bytes
     """
-    return encode_with_stats(array, bpp=bpp, threshold=threshold, psnr=psnr, transform=transform,
-                             kind=kind, wavelet=wavelet, transform_1d=transform_1d, depth=depth,
-                             progress=progress).data
+    return encode_with_stats(
+        array,
+        bpp=bpp,
+        threshold=threshold,
+        psnr=psnr,
+        transform=transform,
+        kind=kind,
+        wavelet=wavelet,
+        transform_1d=transform_1d,
+        depth=depth,
+        progress=progress,
+    ).data
 
 
-def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="bandelet",
-                      kind="image", wavelet="cdf97", transform_1d="alpert2", depth=0,
-                      progress=False) -> Encoded:
+def encode_with_stats(
+    array,
+    *,
+    bpp=None,
+    threshold=None,
+    psnr=None,
+    transform="bandelet",
+    kind="image",
+    wavelet="cdf97",
+    transform_1d="alpert2",
+    depth=0,
+    progress=False,
+) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
     from . import metrics, ratecontrol
 
@@ -399,13 +455,14 @@ def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="
         raise ValueError("give exactly one of bpp, threshold or psnr")
     if depth not in (0, 8, 16):
         raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
-    _check_options(threshold or 1.0, transform, wavelet, transform_1d)
+    _check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
     coefficients = wavelet_coefficients(x, wavelet, levels)
 
     def encode_at(t: float) -> Encoded:
-        header = Header(x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth,
-                        transform_1d)
+        header = Header(
+            x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
+        )
         return encode_at_threshold(coefficients, header)
 
     magnitudes = np.sort(np.abs(np.concatenate([c.ravel() for c in coefficients])))[::-1]
@@ -416,6 +473,11 @@ def encode_with_stats(array, *, bpp=None, threshold=None, psnr=None, transform="
         if not (np.isfinite(bpp) and bpp > 0):
             raise ValueError(f"bpp must be a positive number, got {bpp}")
         target = int(bpp * x.shape[0] * x.shape[1] / 8)
+        if target < HEADER_BYTES:
+            raise ValueError(
+                f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
+                f"{HEADER_BYTES} bytes of header"
+            )
         # Start where about one coefficient in six bits of the budget is significant.
         t_guess = float(magnitudes[min(max(target * 8 // 6, 1), magnitudes.size - 1)]) or t_max / 1e3
         return ratecontrol.for_size(encode_at, target, t_max, t_guess, progress)

@@ -39,18 +39,29 @@ def run_demo(size: int, rates: list[float], out: Path, progress: bool = False) -
         start = time.perf_counter()
         decoded = decode(path.read_bytes())
         decode_s = time.perf_counter() - start
-        rows.append({"codec": transform, "target": rate, "bytes": len(data),
-                     "bpp": bits_per_pixel(len(data), normals.shape),
-                     "psnr": psnr(normals, decoded, "normal-map"),
-                     "encode_s": encode_s, "decode_s": decode_s})
+        rows.append(
+            {
+                "codec": transform,
+                "target": rate,
+                "bytes": len(data),
+                "bpp": bits_per_pixel(len(data), normals.shape),
+                "psnr": psnr(normals, decoded, "normal-map"),
+                "encode_s": encode_s,
+                "decode_s": decode_s,
+            }
+        )
     print(f"crease normal map {size} x {size}, files in {out}/")
     print(f"{'codec':<9} {'target':>7} {'bytes':>8} {'bpp':>7} {'PSNR dB':>8} {'enc s':>6} {'dec s':>6}")
     for r in rows:
-        print(f"{r['codec']:<9} {r['target']:>7g} {r['bytes']:>8d} {r['bpp']:>7.4f} {r['psnr']:>8.2f} "
-              f"{r['encode_s']:>6.2f} {r['decode_s']:>6.2f}")
+        print(
+            f"{r['codec']:<9} {r['target']:>7g} {r['bytes']:>8d} {r['bpp']:>7.4f} {r['psnr']:>8.2f} "
+            f"{r['encode_s']:>6.2f} {r['decode_s']:>6.2f}"
+        )
     if len(rates) >= 4:
-        curves = {t: ([r["bpp"] for r in rows if r["codec"] == t], [r["psnr"] for r in rows if r["codec"] == t])
-                  for t in ("bandelet", "wavelet")}
+        curves = {
+            t: ([r["bpp"] for r in rows if r["codec"] == t], [r["psnr"] for r in rows if r["codec"] == t])
+            for t in ("bandelet", "wavelet")
+        }
         gain = bd_psnr(*curves["bandelet"], *curves["wavelet"])
         print(f"BD-PSNR of bandelets over wavelets: {gain:+.2f} dB")
     return rows

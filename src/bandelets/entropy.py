@@ -225,8 +225,9 @@ def code_flags(coder: Coder, bits: np.ndarray, ctxs: np.ndarray) -> np.ndarray:
     """
     bits = np.array(bits, np.int64)
     coder.reserve(2 * bits.shape[0])
-    _flags(coder.state, coder.buf, coder.probs, coder.counts, bits, np.asarray(ctxs, np.int64),
-           coder.decoding)
+    _flags(
+        coder.state, coder.buf, coder.probs, coder.counts, bits, np.asarray(ctxs, np.int64), coder.decoding
+    )
     return bits
 
 
@@ -251,8 +252,16 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
     """
     symbols = np.array(symbols, np.int64)
     coder.reserve(2 * int(np.sum(n_bits)) + 16)
-    _symbols(coder.state, coder.buf, coder.probs, coder.counts, symbols,
-             np.asarray(bases, np.int64), np.asarray(n_bits, np.int64), coder.decoding)
+    _symbols(
+        coder.state,
+        coder.buf,
+        coder.probs,
+        coder.counts,
+        symbols,
+        np.asarray(bases, np.int64),
+        np.asarray(n_bits, np.int64),
+        coder.decoding,
+    )
     return symbols
 
 
@@ -293,8 +302,19 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
     """
     values = np.array(values, np.int64)
     coder.reserve(8 * values.shape[0] + 16)
-    if _positive(coder.state, coder.buf, coder.probs, coder.counts, _EQUIPROBABLE.copy(), values,
-                 np.asarray(bases, np.int64), coder.decoding) != 0:
+    if (
+        _positive(
+            coder.state,
+            coder.buf,
+            coder.probs,
+            coder.counts,
+            _EQUIPROBABLE.copy(),
+            values,
+            np.asarray(bases, np.int64),
+            coder.decoding,
+        )
+        != 0
+    ):
         raise CorruptStream("coded integer stream is corrupt")
     return values
 
@@ -367,7 +387,19 @@ def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spen
         lengths = np.zeros(bits.shape, np.int64)
         lengths[nonzero] = np.floor(np.log2(bits[nonzero])).astype(np.int64)
         coder.reserve(int(bits.shape[0] + np.sum(nonzero) * 6 + 2 * lengths.sum()) * 12 // 8 + 64)
-    status = _coefficients(coder.state, coder.buf, coder.probs, coder.counts, _EQUIPROBABLE.copy(),
-                           q, known, spent, plan.order, plan.classes, plan.neighbours, coder.decoding)
+    status = _coefficients(
+        coder.state,
+        coder.buf,
+        coder.probs,
+        coder.counts,
+        _EQUIPROBABLE.copy(),
+        q,
+        known,
+        spent,
+        plan.order,
+        plan.classes,
+        plan.neighbours,
+        coder.decoding,
+    )
     if status != 0:
         raise CorruptStream("coded coefficient stream is corrupt")

@@ -15,7 +15,7 @@ into the square (step (9)), coarse first, in the upper-left corner.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from math import gcd
 
 import numpy as np
@@ -23,7 +23,7 @@ import numpy as np
 __all__ = ["critical_angles", "directions", "zigzag"]
 
 
-@lru_cache(maxsize=None)
+@cache
 def critical_angles(width: int) -> np.ndarray:
     """Angles in ``[0, pi)`` of the vectors joining two points of a ``width x width`` grid.
 
@@ -40,7 +40,7 @@ def critical_angles(width: int) -> np.ndarray:
     return np.sort(np.array([np.arctan2(dy, dx) for dx, dy in vectors]))
 
 
-@lru_cache(maxsize=None)
+@cache
 def directions(width: int) -> tuple[np.ndarray, np.ndarray]:
     """The distinct reorderings of a ``width x width`` square.
 
@@ -77,7 +77,7 @@ def directions(width: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(angles), out
 
 
-@lru_cache(maxsize=None)
+@cache
 def zigzag(width: int) -> np.ndarray:
     """Flat indices of a ``width x width`` square in JPEG zig-zag order, upper-left first.
 

@@ -121,8 +121,11 @@ def _subband_box(shape, level, orientation):
 
 def _segment(part) -> Segment:
     order, classes, neighbours = part
-    return Segment(order.astype(np.int64).ravel(), np.asarray(classes, np.int64).ravel(),
-                   neighbours.astype(np.int64).reshape(-1, 5))
+    return Segment(
+        order.astype(np.int64).ravel(),
+        np.asarray(classes, np.int64).ravel(),
+        neighbours.astype(np.int64).reshape(-1, 5),
+    )
 
 
 def approximation_plan(shape: tuple[int, int], levels: int) -> Segment:
@@ -132,8 +135,9 @@ def approximation_plan(shape: tuple[int, int], levels: int) -> Segment:
     return _segment(_raster_part(rows, cols, (0, 0, h, w), None, shape[1], 0))
 
 
-def subband_plan(shape: tuple[int, int], levels: int, index: int, tree: Quadtree,
-                 transform_1d: str) -> tuple[Segment, Segment]:
+def subband_plan(
+    shape: tuple[int, int], levels: int, index: int, tree: Quadtree, transform_1d: str
+) -> tuple[Segment, Segment]:
     """Coding order of detail subband number ``index``: its bandelet squares, then the rest.
 
     Parameters
@@ -166,8 +170,9 @@ def subband_plan(shape: tuple[int, int], levels: int, index: int, tree: Quadtree
         ranks = np.concatenate([np.repeat(r, p[0].shape[1]) for r, p in parts])
         inner = np.concatenate([np.tile(np.arange(p[0].shape[1]), len(r)) for r, p in parts])
         sort = np.lexsort((inner, ranks))
-        squares = tuple(np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort]
-                        for j in range(3))
+        squares = tuple(
+            np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort] for j in range(3)
+        )
     else:
         squares = (np.zeros(0), np.zeros(0), np.zeros((0, 5)))
     rows, cols = np.nonzero(~in_square)

@@ -97,9 +97,12 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, t_guess: floa
         if size <= target_bytes and (best is None or size > len(best.data)):
             best = result
         if size > target_bytes and x >= math.log(t_max):
-            raise ValueError(f"target of {target_bytes} bytes cannot be reached: the smallest file is "
-                             f"{size} bytes")
-        done = (1 - SIZE_TOLERANCE) * target_bytes <= size <= target_bytes or (size < target_bytes and x <= floor)
+            raise ValueError(
+                f"target of {target_bytes} bytes cannot be reached: the smallest file is {size} bytes"
+            )
+        done = (1 - SIZE_TOLERANCE) * target_bytes <= size <= target_bytes or (
+            size < target_bytes and x <= floor
+        )
         return math.log(size), done, size > target_bytes
 
     with tqdm(desc="rate control", unit="encode", disable=not progress, leave=False) as bar:
@@ -109,8 +112,14 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, t_guess: floa
     return best
 
 
-def for_quality(encode_at: Callable, quality: Callable[[bytes], float], target: float, t_max: float,
-                t_guess: float, progress: bool = False):
+def for_quality(
+    encode_at: Callable,
+    quality: Callable[[bytes], float],
+    target: float,
+    t_max: float,
+    t_guess: float,
+    progress: bool = False,
+):
     """Smallest file whose ``quality(file) >= target`` (a PSNR in dB), by a secant search.
 
     Stops when the kept file is within 0.05 dB above the target or ``T`` is pinned.

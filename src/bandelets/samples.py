@@ -35,7 +35,9 @@ def crease_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     for k in range(4):
         cx, cy = 0.12 + 0.1 * k, 0.62 + 0.07 * k
         d2 = (x - cx) ** 2 + (y - cy) ** 2
-        h = h - np.where(d2 < 0.03**2, np.sqrt(np.maximum(0.045**2 - d2, 0.0)) - np.sqrt(0.045**2 - 0.03**2), 0.0)
+        h = h - np.where(
+            d2 < 0.03**2, np.sqrt(np.maximum(0.045**2 - d2, 0.0)) - np.sqrt(0.045**2 - 0.03**2), 0.0
+        )
     return h
 
 

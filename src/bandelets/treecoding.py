@@ -112,7 +112,9 @@ def _code_splits(coder, tree, reference, activity, shape, root):
         ref_width, _ = reference.at(r * size + size // 2, c * size + size // 2)
         state = np.where(ref_width == 0, 2, (ref_width < size).astype(np.int64))
         split = np.zeros(r.shape, np.int64) if tree is None else ~tree.leaf[level][r, c]
-        split = entropy.code_flags(coder, split, (3 * level + state) * _N_ACTIVITY + activity(r * size, c * size, size))
+        split = entropy.code_flags(
+            coder, split, (3 * level + state) * _N_ACTIVITY + activity(r * size, c * size, size)
+        )
         leaf[level][r, c] = split == 0
         opened = (opened & ~leaf[level]).repeat(2, axis=0).repeat(2, axis=1)
     leaf[0] = opened
@@ -138,8 +140,11 @@ def _code_directions(coder, tree, reference, activity, decoded):
         nonzero = entropy.code_flags(coder, offset != 0, np.full(pick.shape, _ZERO + k))
         moved = np.nonzero(nonzero)[0]
         negative = entropy.code_flags(coder, offset[moved] < 0, np.full(moved.shape, _SIGN + k))
-        size = entropy.code_positive(coder, np.abs(offset[moved]) if tree else np.ones(moved.shape),
-                                     np.full(moved.shape, _OFFSET + 20 * k))
+        size = entropy.code_positive(
+            coder,
+            np.abs(offset[moved]) if tree else np.ones(moved.shape),
+            np.full(moved.shape, _OFFSET + 20 * k),
+        )
         if np.any(size > n_dirs // 2):
             raise FormatError("corrupt .bdl file: direction offset out of range")
         offset = np.zeros(pick.shape, np.int64)
@@ -147,16 +152,26 @@ def _code_directions(coder, tree, reference, activity, decoded):
         out[pick] = (guess + offset) % n_dirs
         # Without one: a symbol of the adaptive model of this width.
         pick = np.nonzero((has == 1) & ~predicted & (level == k))[0]
-        symbols = entropy.code_symbols(coder, dirs[pick] if tree else np.zeros(pick.shape),
-                                       np.full(pick.shape, _SYMBOL_BASES[k]), np.full(pick.shape, _n_bits(k)))
+        symbols = entropy.code_symbols(
+            coder,
+            dirs[pick] if tree else np.zeros(pick.shape),
+            np.full(pick.shape, _SYMBOL_BASES[k]),
+            np.full(pick.shape, _n_bits(k)),
+        )
         if np.any(symbols >= n_dirs):
             raise FormatError("corrupt .bdl file: direction index out of range")
         out[pick] = symbols
     return rows, cols, widths, out
 
 
-def code_tree(splits: entropy.Coder, dirs: entropy.Coder, tree: Quadtree | None, shape: tuple[int, int],
-              reference: _Reference, activity) -> Quadtree:
+def code_tree(
+    splits: entropy.Coder,
+    dirs: entropy.Coder,
+    tree: Quadtree | None,
+    shape: tuple[int, int],
+    reference: _Reference,
+    activity,
+) -> Quadtree:
     """Code (``tree`` given) or decode (``tree`` None) the quadtree of one detail subband.
 
     Parameters

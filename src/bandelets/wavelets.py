@@ -23,6 +23,7 @@ wavelet too. The Lagrangian of the bandelet search can then work on coefficients
 
 from __future__ import annotations
 
+import warnings
 from functools import lru_cache
 
 import numpy as np
@@ -141,7 +142,11 @@ def _cdf97_rec(c: np.ndarray, levels: int) -> np.ndarray:
 
 
 def _pywt_dec(x: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
-    coeffs = pywt.wavedec2(x, wavelet, mode="periodization", level=levels)
+    with warnings.catch_warnings():
+        # PyWavelets warns when the coarsest subband is shorter than a long filter (db6, db8);
+        # with periodic extension the transform stays orthogonal and exact, so it is harmless.
+        warnings.simplefilter("ignore", UserWarning)
+        coeffs = pywt.wavedec2(x, wavelet, mode="periodization", level=levels)
     out = np.empty(x.shape)
     a = coeffs[0]
     out[: a.shape[0], : a.shape[1]] = a

@@ -1,0 +1,222 @@
+"""The .bdl container: header, validation and robustness of decode() to damaged files."""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+import sys
+import textwrap
+import zlib
+
+import numpy as np
+import pytest
+
+import bandelets
+from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, pack, unpack
+
+HEADER_SIZE = 40  # fixed fields, before the streams
+
+
+def _with_crc(body: bytes) -> bytes:
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+def _patched(data: bytes, offset: int, fmt: str, value) -> bytes:
+    """``data`` with one header field replaced and a valid CRC again."""
+    b = bytearray(data[:-4])
+    struct.pack_into(fmt, b, offset, value)
+    return _with_crc(bytes(b))
+
+
+@pytest.fixture(scope="module")
+def small_file():
+    """A small gray bandelet file and the image it came from."""
+    from conftest import straight_edge
+
+    x = straight_edge(shape=(24, 40)) + 0.05 * np.random.default_rng(3).standard_normal((24, 40))
+    return bandelets.encode(x, threshold=0.08), x.shape
+
+
+@pytest.fixture(scope="module")
+def normal_file():
+    from bandelets.samples import crease_normal_map
+
+    return bandelets.encode(crease_normal_map(32), threshold=0.03, kind="normal-map")
+
+
+def test_format_error_is_a_value_error():
+    assert issubclass(FormatError, ValueError)
+    assert bandelets.FormatError is FormatError
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        Header(24, 40, 1, "image", "bandelet", "cdf97", 2, 0.08, 0, "alpert2"),
+        Header(16384, 3, 3, "geometry-image", "wavelet", "db8", 6, 1e-9, 16, "haar"),
+        Header(1, 2, 3, "normal-map", "bandelet", "haar", 1, 12.5, 8, "alpert2"),
+    ],
+)
+def test_header_round_trip(header):
+    streams = (b"ab", b"", b"\x00\xff" * 50)
+    data = pack(header, streams)
+    assert data[:4] == MAGIC
+    assert data[4] == FORMAT_VERSION
+    assert len(data) == HEADER_SIZE + sum(map(len, streams)) + 4
+    got, got_streams = unpack(data)
+    assert got == header
+    assert got_streams == streams
+
+
+def test_bad_magic(small_file):
+    data, _ = small_file
+    with pytest.raises(FormatError, match="magic"):
+        unpack(b"PNG\x1a" + data[4:])
+    with pytest.raises(FormatError, match="magic"):
+        bandelets.decode(b"")
+
+
+def test_wrong_version_is_named(small_file):
+    data, _ = small_file
+    bad = _patched(data, 4, "<B", FORMAT_VERSION + 1)
+    with pytest.raises(FormatError, match=f"version {FORMAT_VERSION + 1}"):
+        bandelets.decode(bad)
+
+
+def test_crc_mismatch(small_file):
+    data, _ = small_file
+    b = bytearray(data)
+    b[len(b) // 2] ^= 0x10
+    with pytest.raises(FormatError, match="CRC"):
+        bandelets.decode(bytes(b))
+    with pytest.raises(FormatError, match="CRC"):
+        bandelets.decode(data[:-1] + bytes([data[-1] ^ 1]))
+
+
+def test_truncated_header(small_file):
+    data, _ = small_file
+    with pytest.raises(FormatError, match="truncated"):
+        unpack(data[:HEADER_SIZE])
+
+
+@pytest.mark.parametrize(
+    ("offset", "fmt", "value", "words"),
+    [
+        (12, "<I", 2**31, "exceeds"),  # height
+        (16, "<I", 100_000, "exceeds"),  # width
+        (12, "<I", 0, "exceeds"),
+        (12, "<I", 16384, "samples"),  # sides within the limit, too many samples (see below)
+        (5, "<B", 9, "kind"),
+        (6, "<B", 2, "transform"),
+        (7, "<B", 200, "wavelet"),
+        (8, "<B", 0, "levels"),
+        (8, "<B", 7, "levels"),
+        (9, "<B", 0, "channel"),
+        (9, "<B", 5, "channel"),
+        (10, "<B", 12, "depth"),
+        (11, "<B", 2, "1D transform"),
+        (20, "<d", 0.0, "threshold"),
+        (20, "<d", -1.0, "threshold"),
+        (20, "<d", float("nan"), "threshold"),
+        (20, "<d", float("inf"), "threshold"),
+        (28, "<I", 10**6, "stream lengths"),
+        (36, "<I", 0, "stream lengths"),
+    ],
+)
+def test_absurd_fields_are_format_errors(small_file, offset, fmt, value, words):
+    data, _ = small_file
+    if offset == 12 and value == 16384:  # 16384 x 16384 x 4 channels
+        data = _patched(_patched(data, 16, "<I", 16384), 9, "<B", 4)
+    bad = _patched(data, offset, fmt, value)
+    with pytest.raises(FormatError, match=words):
+        bandelets.decode(bad)
+
+
+def test_size_limits_are_configurable(small_file):
+    data, shape = small_file
+    with pytest.raises(FormatError, match="exceeds"):
+        bandelets.decode(data, max_side=shape[1] - 1)
+    with pytest.raises(FormatError, match="exceeds"):
+        bandelets.decode(data, max_samples=shape[0] * shape[1] - 1)
+    assert bandelets.decode(data, max_side=shape[1], max_samples=shape[0] * shape[1]).shape == shape
+
+
+def _decodes_or_format_error(data, shape):
+    try:
+        out = bandelets.decode(data)
+    except FormatError:
+        return False
+    assert out.shape == shape
+    return True
+
+
+def test_every_truncation_is_a_format_error(small_file):
+    data, shape = small_file
+    for n in range(len(data)):
+        assert not _decodes_or_format_error(data[:n], shape), n
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_random_bit_flips(small_file):
+    data, shape = small_file
+    rng = np.random.default_rng(7)
+    for bit in rng.integers(0, 8 * len(data), 200):
+        b = bytearray(data)
+        b[bit // 8] ^= 1 << (bit % 8)
+        # The CRC catches every single-bit error.
+        assert not _decodes_or_format_error(bytes(b), shape), bit
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("which", ["small", "normal"])
+def test_bit_flips_in_the_streams_behind_a_valid_crc(small_file, normal_file, which):
+    """Damage the CRC cannot see (a valid CRC recomputed): the decoder itself must cope."""
+    data, shape = small_file if which == "small" else (normal_file, (32, 32, 3))
+    rng = np.random.default_rng(11)
+    outcomes = set()
+    for bit in rng.integers(8 * HEADER_SIZE, 8 * (len(data) - 4), 150):
+        b = bytearray(data[:-4])
+        b[bit // 8] ^= 1 << (bit % 8)
+        outcomes.add(_decodes_or_format_error(_with_crc(bytes(b)), shape))
+    assert True in outcomes  # most flips still decode, to something else
+
+
+@pytest.mark.parametrize("channels", [1, 2])
+def test_normal_map_label_on_a_file_without_3_channels_is_a_format_error(channels):
+    # A valid 1- or 2-channel image file whose kind byte says normal-map (valid CRC).
+    x = np.random.default_rng(5).random((16, 16, channels))
+    bad = _patched(bandelets.encode(x, threshold=0.1), 5, "<B", 1)
+    with pytest.raises(FormatError):
+        bandelets.decode(bad)
+
+
+def test_huge_threshold_does_not_crash_the_decoder(tmp_path):
+    # In a subprocess: the failure mode is a crash of the interpreter.
+    script = textwrap.dedent(
+        """
+        import struct, sys, zlib
+        import numpy as np
+        import bandelets
+        y, x = np.mgrid[0:64, 0:64]
+        image = np.tanh((np.cos(0.5) * (y - 32.2) - np.sin(0.5) * (x - 32.3)) / 1.5)
+        image = image + 0.02 * np.random.default_rng(0).standard_normal(image.shape)
+        data = bytearray(bandelets.encode(image, threshold=0.02)[:-4])
+        struct.pack_into("<d", data, 20, 1e308)
+        data = bytes(data) + struct.pack("<I", zlib.crc32(bytes(data)))
+        try:
+            out = bandelets.decode(data)
+        except bandelets.FormatError:
+            print("FormatError")
+        else:
+            print("decoded", out.shape, bool(np.isfinite(out).all()))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, f"decoder process died with status {done.returncode}"
+    assert done.stdout.startswith(("FormatError", "decoded (64, 64)"))

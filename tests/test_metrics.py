@@ -1,0 +1,96 @@
+"""PSNR, peaks and BD-PSNR (bandelets.metrics)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bandelets.metrics import bd_psnr, bits_per_pixel, peak, psnr, unit_vectors
+
+
+def test_psnr_of_a_uniform_error(rng):
+    ref = rng.random((32, 40))
+    ref[0, 0], ref[-1, -1] = 0.0, 2.0  # value range exactly 2
+    decoded = ref + 0.02 * rng.choice([-1.0, 1.0], ref.shape)  # RMSE exactly 0.02
+    assert psnr(ref, decoded) == pytest.approx(20 * np.log10(2.0 / 0.02), abs=1e-9)
+    assert psnr(ref, decoded) == pytest.approx(40.0, abs=1e-9)
+
+
+def test_psnr_identical_is_inf(rng):
+    ref = rng.random((8, 8, 3))
+    assert psnr(ref, ref.copy()) == float("inf")
+
+
+def test_psnr_of_a_constant_reference_uses_peak_one():
+    ref = np.full((4, 4), 5.0)
+    assert peak(ref) == 1.0
+    assert psnr(ref, ref + 0.1) == pytest.approx(20.0, abs=1e-9)
+
+
+def test_psnr_accepts_a_flat_decoded_array(rng):
+    ref = rng.random((6, 5))
+    dec = ref + 0.01
+    assert psnr(ref, dec.ravel()) == pytest.approx(psnr(ref, dec))
+
+
+def test_normal_map_psnr_renormalises_the_reference(rng):
+    n = rng.standard_normal((16, 16, 3))
+    n[..., 2] = np.abs(n[..., 2]) + 0.5
+    unit = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    scaled = 3.0 * n  # not unit length: the metric must renormalise it
+    decoded = unit + 0.01 * rng.standard_normal(unit.shape)
+    expected = 20 * np.log10(np.max(np.abs(unit)) / np.sqrt(np.mean((unit - decoded) ** 2)))
+    assert psnr(scaled, decoded, "normal-map") == pytest.approx(expected, abs=1e-9)
+    assert psnr(scaled, unit, "normal-map") > 250  # equal up to rounding
+    assert peak(unit, "normal-map") == pytest.approx(np.max(np.abs(unit)))
+    # As an image, the same arrays compare differently (different peak, no renormalisation).
+    assert psnr(scaled, decoded, "image") != pytest.approx(expected, abs=0.1)
+
+
+def test_geometry_image_peak_is_the_bounding_box_diagonal():
+    positions = np.zeros((2, 2, 3))
+    positions[1, 1] = [3.0, 4.0, 12.0]
+    assert peak(positions, "geometry-image") == pytest.approx(13.0)
+
+
+def test_unit_vectors_and_zero_vectors():
+    v = np.array([[3.0, 0.0, 4.0], [0.0, 0.0, 0.0]])
+    u = unit_vectors(v)
+    np.testing.assert_allclose(u, [[0.6, 0.0, 0.8], [0.0, 0.0, 1.0]])
+    assert not np.shares_memory(u, v)
+
+
+def test_bits_per_pixel():
+    assert bits_per_pixel(100, (20, 40)) == 1.0
+    assert bits_per_pixel(100, (20, 40, 3)) == 1.0
+
+
+RATES = [0.25, 0.5, 1.0, 2.0, 4.0]
+PSNRS = [28.1, 31.7, 35.0, 38.6, 41.9]
+
+
+def test_bd_psnr_of_a_curve_against_itself_is_zero():
+    assert bd_psnr(RATES, PSNRS, RATES, PSNRS) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_bd_psnr_of_a_shifted_curve():
+    up = [p + 1.0 for p in PSNRS]
+    assert bd_psnr(RATES, up, RATES, PSNRS) == pytest.approx(1.0, abs=1e-9)
+    assert bd_psnr(RATES, PSNRS, RATES, up) == pytest.approx(-1.0, abs=1e-9)
+
+
+def test_bd_psnr_integrates_over_the_common_rate_range():
+    # Both curves sample the same cubic in log10(rate); B over a wider range.
+    def curve(r):
+        x = np.log10(r)
+        return 35 + 8 * x - x**2 + 0.5 * x**3
+
+    rates_a = np.array([0.5, 1.0, 2.0, 4.0])
+    rates_b = np.array([0.1, 0.3, 1.0, 3.0, 8.0])
+    gain = bd_psnr(rates_a, curve(rates_a) + 0.5, rates_b, curve(rates_b))
+    assert gain == pytest.approx(0.5, abs=1e-9)
+
+
+def test_bd_psnr_without_overlap_is_a_value_error():
+    with pytest.raises(ValueError, match="overlap"):
+        bd_psnr([1, 2, 3, 4], PSNRS[:4], [5, 6, 7, 8], PSNRS[:4])

@@ -1,0 +1,102 @@
+"""The normalised 2D wavelet transform (bandelets.wavelets)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bandelets.wavelets import max_levels, padded_shape, subband_slices, wavedec, waverec
+
+# Non-square; the coarsest subband keeps >= 8 samples a side (as the codec does), so that
+# PyWavelets does not warn about boundary effects with db4.
+SHAPES_LEVELS = [((64, 96), 3), ((256, 128), 4), ((32, 48), 2), ((32, 16), 1)]
+
+
+@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar"])
+@pytest.mark.parametrize(("shape", "levels"), SHAPES_LEVELS)
+def test_perfect_reconstruction(wavelet, shape, levels, rng):
+    x = rng.standard_normal(shape)
+    c = wavedec(x, wavelet, levels)
+    assert c.shape == x.shape
+    assert c.dtype == np.float64
+    np.testing.assert_allclose(waverec(c, wavelet, levels), x, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("wavelet", ["db4", "haar"])
+@pytest.mark.parametrize(("shape", "levels"), SHAPES_LEVELS)
+def test_orthogonal_wavelets_preserve_energy(wavelet, shape, levels, rng):
+    x = rng.standard_normal(shape)
+    c = wavedec(x, wavelet, levels)
+    assert np.sum(c**2) == pytest.approx(np.sum(x**2), rel=1e-10)
+
+
+def _subbands(shape, levels):
+    h, w = shape[0] >> levels, shape[1] >> levels
+    yield "A", (slice(0, h), slice(0, w))
+    for level, orientation, where in subband_slices(shape, levels):
+        yield f"{'HVD'[orientation]}{level}", where
+
+
+@pytest.mark.parametrize("levels", [1, 3])
+def test_cdf97_synthesis_functions_have_unit_norm(levels):
+    shape = (128, 160)
+    for name, (rows, cols) in _subbands(shape, levels):
+        # Two positions well inside each subband: the centre and a point off the centre.
+        for dr, dc in [(0, 0), (1, -2)]:
+            c = np.zeros(shape)
+            r0 = (rows.start + rows.stop) // 2 + dr
+            c0 = (cols.start + cols.stop) // 2 + dc
+            c[r0, c0] = 1.0
+            norm = np.linalg.norm(waverec(c, "cdf97", levels))
+            assert norm == pytest.approx(1.0, abs=1e-6), (name, dr, dc)
+
+
+def test_cdf97_is_not_orthogonal_but_normalised():
+    """Sanity check of the previous test: the raw 9/7 synthesis functions are not unit-norm,
+    so the normalisation is doing something (a unit impulse in the raw transform of a
+    detail subband would not give norm 1)."""
+    from bandelets.wavelets import _subband_norms
+
+    norms = np.array(_subband_norms("cdf97", 2))
+    assert np.all(np.abs(norms - 1.0) > 1e-3)
+    assert np.allclose(_subband_norms("db4", 2), 1.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar"])
+def test_constant_image_has_no_details(wavelet):
+    shape, levels = (64, 96), 3
+    c = wavedec(np.full(shape, 3.25), wavelet, levels)
+    h, w = shape[0] >> levels, shape[1] >> levels
+    details = c.copy()
+    details[:h, :w] = 0.0
+    assert np.max(np.abs(details)) < 1e-9
+    # ... and the approximation carries the whole image.
+    assert np.all(np.abs(c[:h, :w]) > 1.0)
+
+
+def test_unknown_wavelet_is_a_value_error():
+    with pytest.raises(ValueError, match="unknown wavelet"):
+        wavedec(np.zeros((8, 8)), "bior9.9", 1)
+
+
+def test_subband_layout_covers_details_once():
+    shape, levels = (32, 48), 3
+    seen = np.zeros(shape, int)
+    h, w = shape[0] >> levels, shape[1] >> levels
+    seen[:h, :w] += 1
+    order = []
+    for level, orientation, where in subband_slices(shape, levels):
+        seen[where] += 1
+        order.append((level, orientation))
+    assert np.all(seen == 1)
+    # Coarsest level first, H, V, D within a level.
+    assert order == [(lv, o) for lv in (3, 2, 1) for o in (0, 1, 2)]
+
+
+def test_padded_shape_and_max_levels():
+    assert padded_shape((37, 53), 2) == (40, 56)
+    assert padded_shape((64, 64), 3) == (64, 64)
+    assert max_levels((8, 8)) == 1
+    assert max_levels((16, 16)) == 1
+    assert max_levels((32, 200)) == 2
+    assert max_levels((4096, 4096)) == 6
