@@ -208,8 +208,9 @@ def code_image(
     known = [np.zeros(size, np.int64) for _ in quantized]
     spent = [np.zeros(size) for _ in quantized]
     approximation = approximation_plan(shape, header.levels)
+    guides = [np.zeros(0, np.int64)] + known[:-1]
     for c, q in enumerate(quantized):
-        entropy.code_coefficients(coeffs, q, approximation, known[c], spent[c])
+        entropy.code_coefficients(coeffs, q, approximation, known[c], guides[c], spent[c])
     out = []
     for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
         band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
@@ -227,14 +228,14 @@ def code_image(
         out.append(tree)
         squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
         for c, q in enumerate(quantized):
-            entropy.code_coefficients(coeffs, q, squares, known[c], spent[c])
+            entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c])
             if squares.order.size:
                 view = known[c].reshape(shape)[where]
                 wavelets = debandeletize(dequantize(view, header.threshold), tree, header.transform_1d)
                 # Hostile thresholds can overflow: the contexts must stay small integers.
                 bins = np.nan_to_num(np.fix(wavelets / header.threshold), posinf=MAX_INDEX, neginf=-MAX_INDEX)
                 view[...] = np.clip(bins, -MAX_INDEX, MAX_INDEX)
-            entropy.code_coefficients(coeffs, q, rest, known[c], spent[c])
+            entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
     return out, quantized, spent
 
 

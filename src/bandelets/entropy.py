@@ -59,10 +59,11 @@ _SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
+_N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide
 _SIG = 0
-_GT1 = _SIG + N_CLASSES * _N_SUM * 3
-_GT2 = _GT1 + N_CLASSES * 5
-_PREFIX = _GT2 + N_CLASSES * 5
+_GT1 = _SIG + N_CLASSES * _N_SUM * 3 * _N_GUIDE
+_GT2 = _GT1 + N_CLASSES * 5 * _N_GUIDE
+_PREFIX = _GT2 + N_CLASSES * 5 * _N_GUIDE
 _SIGN = _PREFIX + N_CLASSES * _EG_PREFIX
 _N_COEFF_CONTEXTS = _SIGN + N_CLASSES * 3
 
@@ -320,7 +321,7 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
 
 
 @njit(cache=True)
-def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes, neighbours, decoding):
+def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, classes, neighbours, decoding):
     mags = np.zeros(5, np.int64)
     for i in range(order.shape[0]):
         at = order[i]
@@ -332,14 +333,15 @@ def _coefficients(st, buf, probs, counts, half, q, known, spent, order, classes,
         total = 2 * mags[0] + 2 * mags[1] + mags[2] + mags[3]
         near = _SUM_BUCKET[total]
         m = abs(q[at])
-        ctx = _SIG + (cls * _N_SUM + near) * 3 + mags[4]
+        g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
+        ctx = _SIG + ((cls * _N_SUM + near) * 3 + mags[4]) * _N_GUIDE + g
         if _code_bit(st, buf, probs, counts, ctx, 1 if m > 0 else 0, decoding) == 0:
             known[at] = 0
             spent[at] = (st[_SPENT] - before) / _COST_SCALE
             continue
-        near5 = min(near, 4)
-        if _code_bit(st, buf, probs, counts, _GT1 + cls * 5 + near5, 1 if m > 1 else 0, decoding):
-            if _code_bit(st, buf, probs, counts, _GT2 + cls * 5 + near5, 1 if m > 2 else 0, decoding):
+        near5 = (cls * 5 + min(near, 4)) * _N_GUIDE + g
+        if _code_bit(st, buf, probs, counts, _GT1 + near5, 1 if m > 1 else 0, decoding):
+            if _code_bit(st, buf, probs, counts, _GT2 + near5, 1 if m > 2 else 0, decoding):
                 r = _elias_gamma(st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding)
                 if r < 0:
                     return -1
@@ -364,7 +366,8 @@ def coefficient_contexts() -> int:
     return _N_COEFF_CONTEXTS
 
 
-def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spent: np.ndarray) -> None:
+def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray,
+                      spent: np.ndarray) -> None:
     """Code the quantized coefficients ``plan.order`` of one channel.
 
     Parameters
@@ -377,6 +380,10 @@ def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spen
         Coding order, context class and neighbour positions of the coefficients.
     known : ndarray of int64, shape (H * W,)
         What the context models see: the values coded so far (zeros elsewhere). Updated.
+    guide : ndarray of int64, shape (H * W,) or (0,)
+        ``known`` of the previous channel, whose magnitude at the same position is a context
+        (the channels of a normal map or a geometry image change at the same places); empty
+        for the first channel.
     spent : ndarray of float64, shape (H * W,)
         Receives the ideal code length of each coefficient coded, in bits (what the rate
         model of :mod:`bandelets.lagrangian` is fitted to).
@@ -395,6 +402,7 @@ def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, spen
         _EQUIPROBABLE.copy(),
         q,
         known,
+        guide,
         spent,
         plan.order,
         plan.classes,
