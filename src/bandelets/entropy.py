@@ -59,6 +59,9 @@ _SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
+_APPROXIMATION = 0
+#: Largest magnitude a decoded coefficient may have (the quantizer's MAX_INDEX).
+MAX_MAGNITUDE = 2**30
 _N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide
 _SIG = 0
 _GT1 = _SIG + N_CLASSES * _N_SUM * 3 * _N_GUIDE
@@ -332,35 +335,55 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             mags[k] = min(abs(known[j]), 2) if j >= 0 else 0
         total = 2 * mags[0] + 2 * mags[1] + mags[2] + mags[3]
         near = _SUM_BUCKET[total]
-        m = abs(q[at])
+        # The approximation is smooth: code its residual from the median predictor of
+        # LOCO-I (left, up, up-left); details are coded as they are.
+        predicted = _median_prediction(known, neighbours[i]) if cls == _APPROXIMATION else 0
+        value = q[at] - predicted
+        m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
         ctx = _SIG + ((cls * _N_SUM + near) * 3 + mags[4]) * _N_GUIDE + g
         if _code_bit(st, buf, probs, counts, ctx, 1 if m > 0 else 0, decoding) == 0:
-            known[at] = 0
-            spent[at] = (st[_SPENT] - before) / _COST_SCALE
-            continue
-        near5 = (cls * 5 + min(near, 4)) * _N_GUIDE + g
-        if _code_bit(st, buf, probs, counts, _GT1 + near5, 1 if m > 1 else 0, decoding):
-            if _code_bit(st, buf, probs, counts, _GT2 + near5, 1 if m > 2 else 0, decoding):
-                r = _elias_gamma(st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding)
-                if r < 0:
-                    return -1
-                m = r + 2
-            else:
-                m = 2
+            m = 0
         else:
-            m = 1
-        j = neighbours[i, 0]
-        sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
-        if guide.shape[0] > 0 and guide[at] != 0:
-            sign_ctx += 3 if guide[at] > 0 else 6
-        negative = 1 if q[at] < 0 else 0
-        negative = _code_bit(st, buf, probs, counts, _SIGN + cls * 9 + sign_ctx, negative, decoding)
-        known[at] = -m if negative else m
+            near5 = (cls * 5 + min(near, 4)) * _N_GUIDE + g
+            if _code_bit(st, buf, probs, counts, _GT1 + near5, 1 if m > 1 else 0, decoding):
+                if _code_bit(st, buf, probs, counts, _GT2 + near5, 1 if m > 2 else 0, decoding):
+                    r = _elias_gamma(st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding)
+                    if r < 0 or r > MAX_MAGNITUDE:
+                        return -1
+                    m = r + 2
+                else:
+                    m = 2
+            else:
+                m = 1
+            j = neighbours[i, 0]
+            sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
+            if guide.shape[0] > 0 and guide[at] != 0:
+                sign_ctx += 3 if guide[at] > 0 else 6
+            negative = _code_bit(st, buf, probs, counts, _SIGN + cls * 9 + sign_ctx, 1 if value < 0 else 0, decoding)
+            if negative:
+                m = -m
+        known[at] = predicted + m
         spent[at] = (st[_SPENT] - before) / _COST_SCALE
         if decoding:
+            if abs(known[at]) > MAX_MAGNITUDE:
+                return -1
             q[at] = known[at]
     return 0
+
+
+@njit(cache=True, inline="always")
+def _median_prediction(known, neighbours):
+    left = known[neighbours[0]] if neighbours[0] >= 0 else 0
+    up = known[neighbours[1]] if neighbours[1] >= 0 else left
+    if neighbours[0] < 0:
+        left = up
+    corner = known[neighbours[2]] if neighbours[2] >= 0 else up
+    if corner >= max(left, up):
+        return min(left, up)
+    if corner <= min(left, up):
+        return max(left, up)
+    return left + up - corner
 
 
 def coefficient_contexts() -> int:
