@@ -39,6 +39,12 @@ from .quantize import bin_index, quantization_error
 
 __all__ = ["LAMBDA", "RATE_MODEL", "square_features", "coefficient_bits", "geometry_bits", "best_directions"]
 
+#: Squares with more than REFINE_ABOVE directions search every REFINE_STRIDE-th one first,
+#: then refine around the best and around the predicted one (the paper's progressive
+#: refinement of d).
+REFINE_ABOVE = 100
+REFINE_STRIDE = 4
+
 #: The paper's Lagrange multiplier (Le Pennec and Mallat 2004).
 LAMBDA = 3.0 / 28.0
 
@@ -137,6 +143,7 @@ def _search(
     direction_bits: float,
     predicted: np.ndarray,
     allow_directions: bool,
+    stride: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     channels = subbands.shape[0]
     n_dirs = orders.shape[0]
@@ -167,23 +174,36 @@ def _search(
             signal = np.empty(n)
             tmp = np.empty(n)
             guess = predicted[r, c]
-            for d in range(n_dirs):
-                if guess < 0:
-                    candidate = price * direction_bits
+            # Progressive refinement: every stride-th direction, then the neighbours of the
+            # best of those and of the predicted direction.
+            for step in range(3):
+                if step == 0:
+                    first, last, every = 0, n_dirs - 1, stride
                 else:
-                    offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
-                    candidate = price * (model[7] + _offset_bits(offset))
-                for k in range(channels):
-                    for i in range(n):
-                        signal[i] = squares[k, orders[d, i]]
-                    multiwavelet_inplace(signal, tmp, mats)
-                    distortion, bits = coefficient_bits(signal, threshold, order_1d, model)
-                    candidate += distortion + price * bits
-                    if candidate >= best_cost:
-                        break
-                if candidate < best_cost:
-                    best_cost = candidate
-                    best[r, c] = d
+                    centre = best[r, c] if step == 1 else guess
+                    if stride == 1 or centre < 0:
+                        continue
+                    first, last, every = centre - stride + 1, centre + stride - 1, 1
+                for dd in range(first, last + 1, every):
+                    d = dd % n_dirs
+                    if step > 0 and d % stride == 0:
+                        continue
+                    if guess < 0:
+                        candidate = price * direction_bits
+                    else:
+                        offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
+                        candidate = price * (model[7] + _offset_bits(offset))
+                    for k in range(channels):
+                        for i in range(n):
+                            signal[i] = squares[k, orders[d, i]]
+                        multiwavelet_inplace(signal, tmp, mats)
+                        distortion, bits = coefficient_bits(signal, threshold, order_1d, model)
+                        candidate += distortion + price * bits
+                        if candidate >= best_cost:
+                            break
+                    if candidate < best_cost:
+                        best_cost = candidate
+                        best[r, c] = d
         cost[r, c] = best_cost
     return cost, best
 
@@ -243,4 +263,5 @@ def best_directions(
         direction_bits,
         np.ascontiguousarray(predicted, dtype=np.int64),
         allow_directions,
+        REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
     )
