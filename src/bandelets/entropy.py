@@ -4,10 +4,11 @@ Why written here: the coder makes one context-dependent binary decision per coef
 (significance from the neighbours, parent and guide channel already decoded, then
 magnitude and sign), millions of them per image, with contexts computed from what was
 just decoded. A library coder must then be called from Python once per decision:
-``constriction``'s range coder, the best-kept candidate, costs about 4.7 us per decision
-that way, and 0.3 us per decision even called once on a whole array with fixed
-probabilities (no adaptation possible), against about 40 ns for this coder compiled with
-numba together with its adaptation (``benchmarks/entropy_coder.py``, 10**6 decisions).
+``constriction``'s range coder, the best-kept candidate, costs about 3 us per decision
+that way; it matches this coder's speed (about 40 ns per decision) only when called once
+on a whole array with probabilities fixed in advance, which rules out adapting them to
+what was just decoded (``benchmarks/entropy_coder.py``, 10**6 decisions). So the coder is
+compiled with numba together with its context modelling.
 The coder is the carry-less range coder of LZMA (a 32-bit range, carries propagated
 through a cached byte) with 16-bit probabilities whose adaptation rate starts fast and
 slows to 1/128 as a context matures.
