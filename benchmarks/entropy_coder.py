@@ -47,7 +47,9 @@ def main() -> None:
     n = np.ones(64)
     start = time.perf_counter()
     for b, c in zip(bits[:N_PY], contexts[:N_PY], strict=True):
-        encoder.encode(int(b), constriction.stream.model.Bernoulli(float(min(max(p[c], 1e-4), 1 - 1e-4)), perfect=False))
+        encoder.encode(
+            int(b), constriction.stream.model.Bernoulli(float(min(max(p[c], 1e-4), 1 - 1e-4)), perfect=False)
+        )
         n[c] += 1
         p[c] += (b - p[c]) / n[c]
     per_call = time.perf_counter() - start
