@@ -289,3 +289,16 @@ def test_zero_threshold_without_basis_search_is_a_value_error():
     # Without the search, quantize() is what refuses it (by luck: 0 slips the option check).
     with pytest.raises(ValueError, match="threshold"):
         bandelets.encode(GOOD, threshold=0, transform="wavelet")
+
+
+def test_files_are_identical_run_after_run_and_on_any_number_of_threads(crease_map):
+    import numba
+
+    files = []
+    for threads in (1, numba.config.NUMBA_NUM_THREADS, 1):
+        numba.set_num_threads(threads)
+        try:
+            files.append(bandelets.encode(crease_map, threshold=0.02, kind="normal-map"))
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    assert files[0] == files[1] == files[2]
