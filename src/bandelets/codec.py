@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import entropy
+from . import entropy, metrics, ratecontrol
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
 from .bitstream import HEADER_BYTES, KINDS, TRANSFORMS, FormatError, Header, pack, unpack
 from .lagrangian import LAMBDA, best_directions
@@ -135,6 +135,8 @@ def forward(
     -------
     Bandelets
     """
+    if np.ndim(channel) != 2:
+        raise ValueError(f"forward takes one channel, an H x W array; got shape {np.shape(channel)}")
     x = check_image(channel, "image")[..., 0]
     _check_options(threshold, transform, wavelet, transform_1d)
     levels = levels or max_levels(x.shape)
@@ -280,14 +282,6 @@ def _check_options(threshold: float, transform: str, wavelet: str, transform_1d:
         raise ValueError(f"threshold must be a positive number, got {threshold}")
 
 
-def _renormalise(vectors: np.ndarray) -> np.ndarray:
-    """Unit vectors; zero vectors (no direction left after coding) become +z."""
-    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
-    out = np.where(norm > 0, vectors / np.where(norm > 0, norm, 1), 0.0)
-    out[..., 2][norm[..., 0] == 0] = 1.0
-    return out
-
-
 @dataclass(frozen=True)
 class Encoded:
     """A .bdl file and what the encoder knows about it."""
@@ -297,16 +291,16 @@ class Encoded:
     coefficient_sse: float  # squared quantization error summed over all (padded) coefficients
 
 
-def encode_at_threshold(wavelet_coefficients: list[np.ndarray], header: Header) -> Encoded:
+def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encoded:
     """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
 
     Rate control calls this repeatedly with the same coefficients: the wavelet transform is
     done once, the basis search and the coding once per threshold.
     """
     threshold = header.threshold
-    trees = _best_trees(wavelet_coefficients, header.levels, threshold, header.transform, header.transform_1d)
+    trees = _best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d)
     bandelets = [
-        _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in wavelet_coefficients
+        _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients
     ]
     quantized = [quantize(b, threshold) for b in bandelets]
     sse = sum(
@@ -375,7 +369,7 @@ def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.nda
     if not np.all(np.isfinite(out)):
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
-        out = _renormalise(out)
+        out = metrics.unit_vectors(out)
     return out[..., 0] if header.channels == 1 else out
 
 
@@ -446,8 +440,6 @@ def encode_with_stats(
     progress=False,
 ) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
-    from . import metrics, ratecontrol
-
     x = check_image(array, kind)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
