@@ -350,7 +350,9 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             near5 = (cls * 5 + min(near, 4)) * _N_GUIDE + g
             if _code_bit(st, buf, probs, counts, _GT1 + near5, 1 if m > 1 else 0, decoding):
                 if _code_bit(st, buf, probs, counts, _GT2 + near5, 1 if m > 2 else 0, decoding):
-                    r = _elias_gamma(st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding)
+                    r = _elias_gamma(
+                        st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding
+                    )
                     if r < 0 or r > MAX_MAGNITUDE:
                         return -1
                     m = r + 2
@@ -362,7 +364,9 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
             if guide.shape[0] > 0 and guide[at] != 0:
                 sign_ctx += 3 if guide[at] > 0 else 6
-            negative = _code_bit(st, buf, probs, counts, _SIGN + cls * 9 + sign_ctx, 1 if value < 0 else 0, decoding)
+            negative = _code_bit(
+                st, buf, probs, counts, _SIGN + cls * 9 + sign_ctx, 1 if value < 0 else 0, decoding
+            )
             if negative:
                 m = -m
         known[at] = predicted + m
@@ -393,8 +397,9 @@ def coefficient_contexts() -> int:
     return _N_COEFF_CONTEXTS
 
 
-def code_coefficients(coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray,
-                      spent: np.ndarray) -> None:
+def code_coefficients(
+    coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray, spent: np.ndarray
+) -> None:
     """Code the quantized coefficients ``plan.order`` of one channel.
 
     Parameters
