@@ -74,6 +74,53 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=512, help="side of the generated map (default 512)")
     p.add_argument("--rates", default="0.25,0.5,1,2", help="target bpp list (default 0.25,0.5,1,2)")
     p.add_argument("--out", default="bandelets-demo", help="folder for the files (default bandelets-demo)")
+
+    p = sub.add_parser("rd", help="rate-distortion curves and BD-PSNR against other codecs")
+    p.add_argument(
+        "inputs",
+        nargs="*",
+        metavar="INPUT",
+        help="PNG, .npy or sample:NAME[@SIZE] (crease, bumps, edge-step, edge-tangent); "
+        "with --decay, default sample:edge-step sample:edge-tangent",
+    )
+    p.add_argument("--kind", choices=KINDS, default="image", help="kind of the file inputs (default image)")
+    p.add_argument("--rates", help="target bpp list (default 0.125,0.25,0.5,1,2; with --decay 1/64 to 1)")
+    p.add_argument(
+        "--codecs",
+        help="from bandelet,wavelet,jpeg2000,avif,jpegxl (default all; with --decay bandelet,wavelet)",
+    )
+    p.add_argument("--out", default="rd", help="folder for the files, rd.csv and rd.png (default rd)")
+    p.add_argument("--decay", action="store_true", help="also fit the decay exponent of log MSE vs log bits")
+
+    p = sub.add_parser("show", help="draw the quadtrees and directions of a .bdl file (paper figure 6)")
+    p.add_argument("input")
+    p.add_argument("output", help="the PNG to write")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+    p = sub.add_parser("mesh-encode", help="compress a closed genus-0 mesh as a spherical geometry image")
+    p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
+    p.add_argument("output", help="the .bdl file to write")
+    p.add_argument("--size", type=int, default=256, help="side of the geometry image, even (default 256)")
+    target = p.add_mutually_exclusive_group()
+    target.add_argument("--bpp", type=float, help="bits per geometry-image pixel (default 1)")
+    target.add_argument("--bits-per-vertex", type=float, help="bits per vertex of the input mesh")
+    target.add_argument("--bytes", type=int, help="size of the whole file")
+    p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+    p = sub.add_parser("mesh-decode", help="rebuild the closed mesh of a geometry-image .bdl file")
+    p.add_argument("input")
+    p.add_argument("output", help=".obj, .ply or .off")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+    p = sub.add_parser(
+        "geometry-image", help="spherical geometry image (and normal map) of a closed genus-0 mesh"
+    )
+    p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
+    p.add_argument("output", help="the .npy to write (n x n x 3 float32 positions)")
+    p.add_argument("--size", type=int, default=256, help="side of the image, even (default 256)")
+    p.add_argument("--normals", help="also write the unit normals: 16-bit .png or float32 .npy")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite existing outputs")
     return parser
 
 
@@ -110,13 +157,28 @@ def _encode(args) -> None:
 
 
 def _decode(args) -> None:
-    from .bitstream import unpack
+    from .bitstream import FormatError
     from .codec import decode_parsed
     from .files import write_array
 
     _check_output(args.input, args.output, args.force)
-    header, streams = unpack(_read_bdl(args.input))
-    write_array(args.output, decode_parsed(header, streams), header.kind, header.depth)
+    _, header, streams = _unpack_bdl(args.input)
+    try:
+        decoded = decode_parsed(header, streams)
+    except FormatError as err:
+        raise ValueError(f"{args.input}: {err}") from None
+    write_array(args.output, decoded, header.kind, header.depth)
+
+
+def _unpack_bdl(path: str):
+    """``(data, header, streams)`` of a .bdl file; errors name the file."""
+    from .bitstream import FormatError, unpack
+
+    data = _read_bdl(path)
+    try:
+        return (data, *unpack(data))
+    except FormatError as err:
+        raise ValueError(f"{path}: {err}") from None
 
 
 def _read_bdl(path: str) -> bytes:
@@ -126,11 +188,10 @@ def _read_bdl(path: str) -> bytes:
 
 
 def _info(args) -> None:
-    from .bitstream import FORMAT_VERSION, unpack
+    from .bitstream import FORMAT_VERSION
     from .metrics import bits_per_pixel
 
-    data = _read_bdl(args.input)
-    header, streams = unpack(data)
+    data, header, streams = _unpack_bdl(args.input)
     info = {
         "width": header.width,
         "height": header.height,
@@ -163,10 +224,89 @@ def _demo(args) -> None:
     run_demo(args.size, rates, Path(args.out), progress=sys.stderr.isatty())
 
 
+def _numbers(text: str, option: str) -> list[float]:
+    try:
+        return [float(r) for r in text.split(",") if r.strip()]
+    except ValueError:
+        raise ValueError(f"{option} must be a comma-separated list of numbers, got {text!r}") from None
+
+
+def _rd(args) -> None:
+    from . import anchors, rd
+
+    inputs = args.inputs or (["sample:edge-step", "sample:edge-tangent"] if args.decay else [])
+    if not inputs:
+        raise ValueError("give at least one INPUT (a PNG, a .npy file or sample:NAME)")
+    default_rates = "0.015625,0.03125,0.0625,0.125,0.25,0.5,1" if args.decay else "0.125,0.25,0.5,1,2"
+    default_codecs = "bandelet,wavelet" if args.decay else ",".join(rd.CODECS)
+    rates = _numbers(args.rates or default_rates, "--rates")
+    codecs = [c.strip() for c in (args.codecs or default_codecs).split(",") if c.strip()]
+    sources = [rd.load(spec, args.kind) for spec in inputs]
+    out = Path(args.out)
+    rows = rd.run(sources, rates, codecs, out, progress=sys.stderr.isatty())
+    for codec, version in anchors.versions().items():
+        if codec in codecs:
+            print(f"{codec}: {version}")
+    print(rd.format_points(rows))
+    print()
+    print(rd.format_summary(rows, slopes=args.decay))
+    print(f"\nfiles, rd.csv and rd.png in {out}/")
+
+
+def _show(args) -> None:
+    from .show import geometry_figure
+
+    _check_output(args.input, args.output, args.force)
+    geometry_figure(_read_bdl(args.input), Path(args.output))
+
+
+def _mesh_encode(args) -> None:
+    from .files import write_atomic
+    from .surfaces.codec import encode_mesh, load_mesh
+
+    _check_output(args.input, args.output, args.force)
+    data = encode_mesh(
+        load_mesh(args.input),
+        size=args.size,
+        bpp=args.bpp,
+        bits_per_vertex=args.bits_per_vertex,
+        n_bytes=args.bytes,
+        transform=args.transform,
+    )
+    write_atomic(args.output, data)
+
+
+def _mesh_decode(args) -> None:
+    from .files import write_atomic
+    from .surfaces.codec import MESH_FORMATS, decode_mesh, mesh_bytes
+
+    _check_output(args.input, args.output, args.force)
+    file_type = Path(args.output).suffix.lower().lstrip(".")
+    if file_type not in MESH_FORMATS:
+        raise ValueError(f"{args.output}: unsupported mesh format; use .obj, .ply or .off")
+    write_atomic(args.output, mesh_bytes(decode_mesh(_read_bdl(args.input)), file_type))
+
+
+def _geometry_image(args) -> None:
+    from .files import write_array
+    from .surfaces.codec import load_mesh, make_geometry_image
+
+    outputs = [args.output] + ([args.normals] if args.normals else [])
+    for output, suffixes in zip(outputs, ((".npy",), (".png", ".npy")), strict=False):
+        _check_output(args.input, output, args.force)
+        if Path(output).suffix.lower() not in suffixes:
+            raise ValueError(f"{output}: unsupported output format; use {' or '.join(suffixes)}")
+    image = make_geometry_image(load_mesh(args.input), args.size)
+    write_array(args.output, image.positions, "geometry-image", 0)
+    if args.normals:
+        write_array(args.normals, image.normals, "normal-map", 16)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     parser = _build_parser()
-    commands = {"encode": _encode, "decode": _decode, "info": _info, "demo": _demo}
+    commands = {"encode": _encode, "decode": _decode, "info": _info, "demo": _demo, "rd": _rd, "show": _show}
+    commands |= {"mesh-encode": _mesh_encode, "mesh-decode": _mesh_decode, "geometry-image": _geometry_image}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

@@ -1,0 +1,63 @@
+"""Figures: PSNR against rate, one panel per input (matplotlib, imported when drawing)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from .files import write_atomic
+
+__all__ = ["rd_figure", "save"]
+
+#: Line style of each codec, so that a codec looks the same in every panel and figure.
+_STYLE = {
+    "bandelet": ("tab:red", "o", "-"),
+    "wavelet": ("tab:orange", "s", "--"),
+    "jpeg2000": ("tab:blue", "^", "-."),
+    "avif": ("tab:green", "D", ":"),
+    "jpegxl": ("tab:purple", "v", (0, (3, 1, 1, 1))),
+}
+
+
+def save(figure, path: Path, dpi: int = 100) -> None:
+    """Write a matplotlib figure as PNG through :func:`bandelets.files.write_atomic`."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    write_atomic(path, buffer.getvalue())
+
+
+def rd_figure(rows: list[dict], path: Path) -> None:
+    """Plot PSNR (dB) against bits per pixel for every codec, one panel per input.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Points with keys ``input, codec, bpp, psnr`` (as :func:`bandelets.rd.run` returns).
+    path : Path
+        The PNG to write.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import FormatStrFormatter
+
+    inputs = list(dict.fromkeys(r["input"] for r in rows)) or ["(no points)"]
+    columns = min(3, len(inputs))
+    lines = -(-len(inputs) // columns)
+    figure = Figure(figsize=(4.6 * columns, 3.6 * lines), layout="constrained")
+    axes = figure.subplots(lines, columns, squeeze=False).ravel()
+    for ax, name in zip(axes, inputs, strict=False):
+        curves = [r for r in rows if r["input"] == name]
+        for codec in dict.fromkeys(r["codec"] for r in curves):
+            points = sorted((r["bpp"], r["psnr"]) for r in curves if r["codec"] == codec)
+            colour, marker, style = _STYLE.get(codec, ("black", "x", "-"))
+            ax.plot(*zip(*points, strict=True), color=colour, marker=marker, linestyle=style, label=codec)
+        ax.set_xscale("log", base=2)
+        ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.set_title(name)
+        ax.set_xlabel("bits per pixel (file size)")
+        ax.set_ylabel("PSNR (dB)")
+        ax.grid(True, which="both", alpha=0.3)
+        if curves:
+            ax.legend(fontsize="small")
+    for ax in axes[len(inputs) :]:
+        ax.set_visible(False)
+    save(figure, path)

@@ -1,0 +1,284 @@
+"""``bandelets rd``: rate-distortion curves of bandelets against other codecs.
+
+Every point is a real file: the codec encodes at a target rate, the file is written, read
+back and decoded, ``bpp = 8 * bytes / (H * W)`` and the PSNR (:func:`bandelets.metrics.psnr`
+for the input's kind) is measured on what was decoded. The curves are compared by their
+BD-PSNR against bandelets, and ``--decay`` fits the slope of ``log MSE`` against
+``log bits``, the exponent of the paper's decay theorems.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from . import anchors, samples
+from .files import read_array, write_atomic
+from .metrics import bd_psnr, bits_per_pixel, psnr
+
+__all__ = [
+    "CODECS",
+    "SAMPLES",
+    "Source",
+    "decay_slopes",
+    "format_points",
+    "format_summary",
+    "gains",
+    "load",
+    "run",
+]
+
+#: Codecs ``rd`` knows: the bandelet codec, the same codec without geometry, the anchors.
+CODECS = ("bandelet", "wavelet", *anchors.ANCHORS)
+
+#: Generated inputs, ``sample:NAME[@SIZE]``: the generator of each and the kind it is.
+SAMPLES = {
+    "crease": (samples.crease_normal_map, "normal-map"),
+    "bumps": (samples.bump_normal_map, "normal-map"),
+    "edge-step": (lambda size: samples.blurred_edge(size, "step"), "image"),
+    "edge-tangent": (lambda size: samples.blurred_edge(size, "tangent"), "image"),
+}
+
+#: Side of a generated input when the name gives none.
+SAMPLE_SIZE = 256
+
+_COLUMNS = ("input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s")
+
+
+@dataclass(frozen=True)
+class Source:
+    """One input of a run: its label, values, kind and PNG bit depth (0: float)."""
+
+    name: str
+    array: np.ndarray
+    kind: str
+    depth: int = 0
+
+
+def load(spec: str, kind: str = "image") -> Source:
+    """Read a PNG / .npy path, or generate ``sample:NAME[@SIZE]`` (which has its own kind).
+
+    Raises
+    ------
+    ValueError
+        Unknown sample, bad size, an unreadable file or one the codec cannot take.
+    """
+    if not spec.startswith("sample:"):
+        from .codec import check_image
+
+        array, depth = read_array(spec, kind)
+        try:  # here, so that a bad input stops the run instead of skipping its every point
+            check_image(array, kind)
+        except ValueError as err:
+            raise ValueError(f"{spec}: {err}") from None
+        return Source(Path(spec).stem, array, kind, depth)
+    name, _, size = spec[len("sample:") :].partition("@")
+    if name not in SAMPLES:
+        raise ValueError(f"unknown sample {name!r}; choose one of {', '.join(SAMPLES)}")
+    if size and not (size.isdigit() and 16 <= int(size) <= 4096):
+        raise ValueError(f"{spec}: the size must be an integer from 16 to 4096")
+    side = int(size or SAMPLE_SIZE)
+    make, sample_kind = SAMPLES[name]
+    return Source(f"{name}@{side}", make(side), sample_kind)
+
+
+def _encode(source: Source, codec: str, rate: float) -> bytes:
+    if codec in anchors.ANCHORS:
+        return anchors.encode(source.array, rate, codec, source.kind, source.depth)
+    from .codec import encode
+
+    return encode(source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth)
+
+
+def _decode(source: Source, codec: str, data: bytes) -> np.ndarray:
+    if codec in anchors.ANCHORS:
+        return anchors.decode(data, codec, source.array, source.kind, source.depth)
+    from .codec import decode
+
+    return decode(data)
+
+
+def _point(source: Source, codec: str, rate: float, folder: Path) -> dict:
+    """Encode, write, read back, decode and measure one point."""
+    start = time.perf_counter()
+    data = _encode(source, codec, rate)
+    encode_s = time.perf_counter() - start
+    path = folder / f"{codec}-{rate:g}bpp.{anchors.EXTENSIONS.get(codec, 'bdl')}"
+    write_atomic(path, data)
+    written = path.read_bytes()
+    start = time.perf_counter()
+    decoded = _decode(source, codec, written)
+    decode_s = time.perf_counter() - start
+    return {
+        "input": source.name,
+        "codec": codec,
+        "target": rate,
+        "bytes": len(written),
+        "bpp": bits_per_pixel(len(written), source.array.shape),
+        "psnr": psnr(source.array, decoded, source.kind),
+        "encode_s": encode_s,
+        "decode_s": decode_s,
+    }
+
+
+def run(
+    sources: list[Source], rates: list[float], codecs: list[str], out: Path, progress: bool = False
+) -> list[dict]:
+    """Measure every codec at every rate on every source.
+
+    Writes the files under ``out/INPUT/``, then ``out/rd.csv`` and ``out/rd.png``. A point
+    a codec cannot reach (a target below its smallest file) is skipped with a warning.
+
+    Returns
+    -------
+    list of dict
+        One row per point, with the keys of the CSV columns.
+    """
+    unknown = [c for c in codecs if c not in CODECS]
+    if unknown:
+        raise ValueError(f"unknown codec {unknown[0]!r}; choose from {', '.join(CODECS)}")
+    missing = [c for c in codecs if c in anchors.ANCHORS and not anchors.available(c)]
+    if missing:
+        raise ValueError(f"imagecodecs was built without {missing[0]}")
+    if not rates or any(not (np.isfinite(r) and r > 0) for r in rates):
+        raise ValueError("rates must be positive numbers")
+    names = [s.name for s in sources]
+    if len(set(names)) != len(names):
+        raise ValueError("two inputs have the same name; rename one")
+    for s in sources:
+        (out / s.name).mkdir(parents=True, exist_ok=True)
+    jobs = [(s, c, r) for s in sources for c in codecs for r in rates]
+    rows = []
+    for source, codec, rate in tqdm(jobs, desc="rd", disable=not progress):
+        try:
+            rows.append(_point(source, codec, rate, out / source.name))
+        except ValueError as err:
+            warnings.warn(f"{source.name}: {codec} at {rate:g} bpp skipped: {err}", stacklevel=2)
+    _write_csv(rows, out / "rd.csv")
+    from .plots import rd_figure
+
+    rd_figure(rows, out / "rd.png")
+    return rows
+
+
+def _write_csv(rows: list[dict], path: Path) -> None:
+    text = io.StringIO()
+    writer = csv.DictWriter(text, _COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: f"{v:.6g}" if isinstance(v, float) else v for k, v in row.items()})
+    write_atomic(path, text.getvalue().encode())
+
+
+def _curve(rows: list[dict], name: str, codec: str) -> tuple[np.ndarray, np.ndarray]:
+    """The finite (bpp, psnr) points of one curve, by increasing rate."""
+    points = sorted((r["bpp"], r["psnr"]) for r in rows if r["input"] == name and r["codec"] == codec)
+    points = [p for p in points if np.isfinite(p[1])]
+    return np.array([p[0] for p in points]), np.array([p[1] for p in points])
+
+
+def _pairs(rows: list[dict]) -> list[tuple[str, str]]:
+    """(input, codec) of every curve, in the order of the rows."""
+    return list(dict.fromkeys((r["input"], r["codec"]) for r in rows))
+
+
+def gains(rows: list[dict], reference: str = "bandelet") -> list[dict]:
+    """BD-PSNR of ``reference`` over every other codec, per input.
+
+    Returns
+    -------
+    list of dict
+        ``input, codec, gain`` (dB; positive when ``reference`` is better; NaN when a curve
+        has fewer than four points or the curves do not overlap in rate).
+    """
+    out = []
+    for name, codec in _pairs(rows):
+        if codec == reference:
+            continue
+        ours, theirs = _curve(rows, name, reference), _curve(rows, name, codec)
+        gain = float("nan")
+        if min(ours[0].size, theirs[0].size) >= 4:
+            try:
+                gain = bd_psnr(*ours, *theirs)
+            except ValueError:  # no common rate range
+                pass
+        out.append({"input": name, "codec": codec, "gain": gain})
+    return out
+
+
+def decay_slopes(rows: list[dict]) -> list[dict]:
+    """Least-squares slope of ``log MSE`` against ``log bits`` of every curve.
+
+    ``MSE = peak**2 10**(-PSNR / 10)``, so the slope is that of ``-PSNR ln(10) / 10``
+    against ``ln(8 * bytes)``; the peak drops out. NaN for fewer than two points.
+    """
+    out = []
+    for name, codec in _pairs(rows):
+        bpp, quality = _curve(rows, name, codec)
+        slope = float("nan")
+        if bpp.size >= 2:
+            slope = float(np.polyfit(np.log(bpp), -quality * np.log(10) / 10, 1)[0])
+        out.append({"input": name, "codec": codec, "slope": slope})
+    return out
+
+
+def _table(header: list[str], lines: list[list[str]]) -> str:
+    """A Markdown table, readable as it is on a terminal."""
+    widths = [max(len(str(x)) for x in column) for column in zip(header, *lines, strict=True)]
+    rule = ["-" * w for w in widths]
+    return "\n".join(
+        "| " + " | ".join(str(x).ljust(w) for x, w in zip(line, widths, strict=True)) + " |"
+        for line in [header, rule, *lines]
+    )
+
+
+def format_points(rows: list[dict]) -> str:
+    """Every measured point as a Markdown table."""
+    return _table(
+        ["input", "codec", "target", "bytes", "bpp", "PSNR dB", "enc s", "dec s"],
+        [
+            [
+                r["input"],
+                r["codec"],
+                f"{r['target']:g}",
+                str(r["bytes"]),
+                f"{r['bpp']:.4f}",
+                f"{r['psnr']:.2f}",
+                f"{r['encode_s']:.2f}",
+                f"{r['decode_s']:.2f}",
+            ]
+            for r in rows
+        ],
+    )
+
+
+def format_summary(rows: list[dict], slopes: bool = False) -> str:
+    """One line per curve: its rate range, the BD-PSNR of bandelets over it, and the slope."""
+    gain = {(g["input"], g["codec"]): g["gain"] for g in gains(rows)}
+    slope = {(s["input"], s["codec"]): s["slope"] for s in decay_slopes(rows)}
+    header = ["input", "codec", "points", "bpp range", "PSNR range", "bandelets' BD-PSNR gain dB"]
+    lines = []
+    for name, codec in _pairs(rows):
+        bpp, quality = _curve(rows, name, codec)
+        g = gain.get((name, codec))
+        line = [
+            name,
+            codec,
+            str(bpp.size),
+            f"{bpp.min():.3f}-{bpp.max():.3f}" if bpp.size else "-",
+            f"{quality.min():.2f}-{quality.max():.2f}" if bpp.size else "-",
+            "(reference)" if g is None else ("n/a" if np.isnan(g) else f"{g:+.2f}"),
+        ]
+        if slopes:
+            line.append(f"{slope[(name, codec)]:.2f}")
+        lines.append(line)
+    if slopes:
+        header.append("slope of log MSE vs log bits")
+    return _table(header, lines)

@@ -1,0 +1,16 @@
+"""Surfaces: closed genus-0 meshes as spherical geometry images (the paper's section 6).
+
+One module per stage, each plain functions on numpy arrays and ``trimesh.Trimesh`` objects:
+
+========================  ===============================================================
+:mod:`.checks`            closed, manifold, one component, genus 0 (or a clear error)
+:mod:`.sphere`            flip-free spherical parameterization and its area distortion
+:mod:`.octahedral`        sphere <-> octahedron <-> unit square, forward and inverse
+:mod:`.geometry_image`    sampling positions and normals on the grid; the glued mesh back
+:mod:`.metrics`           RMS symmetric Hausdorff distance (pymeshlab) and its PSNR
+:mod:`.codec`             mesh -> .bdl -> mesh
+========================  ===============================================================
+
+This package imports trimesh, scipy and pymeshlab; the rest of ``bandelets`` never imports
+it at start-up.
+"""

@@ -1,0 +1,116 @@
+"""Checks that a triangle mesh can be mapped to the sphere.
+
+A spherical parameterization needs a closed, edge- and vertex-manifold, connected surface of
+genus 0. :func:`check_genus0` names the first thing that is wrong.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["check_genus0", "edge_face_counts"]
+
+
+def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The undirected edges of a triangle mesh and how many faces hold each.
+
+    Parameters
+    ----------
+    faces : ndarray of int, shape (F, 3)
+
+    Returns
+    -------
+    edges : ndarray of int, shape (E, 2)
+        Sorted vertex pairs, each once.
+    counts : ndarray of int, shape (E,)
+        Number of faces on each edge: 1 on an open boundary, 2 on a manifold edge.
+    """
+    pairs = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    return np.unique(pairs, axis=0, return_counts=True)
+
+
+def _components(n_nodes: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(n_nodes, n_nodes))
+    return connected_components(graph, directed=False)
+
+
+def _vertex_fans(faces: np.ndarray) -> int:
+    """Number of fans of faces around the vertices (one per vertex on a manifold mesh).
+
+    The nodes are the face corners; two corners at the same vertex are joined when their
+    faces share an edge at that vertex.
+    """
+    n_faces = faces.shape[0]
+    corner = np.arange(3 * n_faces).reshape(n_faces, 3)
+    # Directed edge (faces[f, k], faces[f, k+1]) starts at corner k and ends at corner k+1.
+    start = faces.ravel()
+    end = np.roll(faces, -1, axis=1).ravel()
+    start_corner = corner.ravel()
+    end_corner = np.roll(corner, -1, axis=1).ravel()
+    # Match each directed edge (a, b) with its opposite (b, a) in the neighbouring face.
+    n = int(faces.max()) + 1
+    key = start.astype(np.int64) * n + end
+    order = np.argsort(key)
+    opposite = end.astype(np.int64) * n + start
+    where = np.searchsorted(key[order], opposite)
+    where = np.minimum(where, key.size - 1)
+    found = key[order][where] == opposite
+    mate = order[where][found]
+    # The corner at a of this edge meets the corner at a of the mate (its end corner), and so on.
+    a = np.concatenate([start_corner[found], end_corner[found]])
+    b = np.concatenate([end_corner[mate], start_corner[mate]])
+    return _components(3 * n_faces, a, b)[0]
+
+
+def check_genus0(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Raise ``ValueError`` unless the mesh is a closed, manifold, connected genus-0 surface.
+
+    Parameters
+    ----------
+    vertices : ndarray of float, shape (V, 3)
+        Positions (any unit); every vertex must be used by a face.
+    faces : ndarray of int, shape (F, 3)
+        Triangles, consistently oriented.
+
+    Raises
+    ------
+    ValueError
+        Naming what is wrong: no faces, unused vertices, several components, an open
+        boundary, non-manifold edges or vertices, inconsistent orientation, or genus g > 0.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    n_vertices = len(vertices)
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] < 4:
+        raise ValueError(f"expected a closed triangle mesh, got faces of shape {faces.shape}")
+    if faces.min() < 0 or faces.max() >= n_vertices:
+        raise ValueError("faces refer to vertices that do not exist")
+    if np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])):
+        raise ValueError("some faces repeat a vertex (degenerate triangles)")
+    unused = n_vertices - np.unique(faces).size
+    if unused:
+        raise ValueError(f"{unused} vertices are used by no face")
+    edges, counts = edge_face_counts(faces)
+    n_components = _components(n_vertices, edges[:, 0], edges[:, 1])[0]
+    if n_components > 1:
+        raise ValueError(f"the mesh has several components ({n_components}); expected one")
+    if np.any(counts == 1):
+        raise ValueError(
+            f"the mesh is not closed: open boundary of {int(np.sum(counts == 1))} edges "
+            "(holes must be filled)"
+        )
+    if np.any(counts > 2):
+        raise ValueError(
+            f"the mesh has {int(np.sum(counts > 2))} non-manifold edges (on more than two faces)"
+        )
+    directed = np.unique(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=0)
+    if directed.shape[0] != 2 * edges.shape[0]:
+        raise ValueError("the faces are not consistently oriented (or the surface is not orientable)")
+    fans = _vertex_fans(faces)
+    if fans != n_vertices:
+        raise ValueError(f"the mesh has {fans - n_vertices} non-manifold vertices (pinched fans)")
+    euler = n_vertices - edges.shape[0] + faces.shape[0]
+    if euler != 2:
+        raise ValueError(f"the surface has genus {(2 - euler) // 2}; spherical geometry images need genus 0")

@@ -1,0 +1,182 @@
+"""Spherical geometry images: sampling a mesh on the octahedral grid, and the mesh back.
+
+A geometry image of side ``n`` holds, at the pixel centres of the unfolded octahedron
+(:func:`bandelets.surfaces.octahedral.grid`), the surface point whose spherical image is that
+pixel's sphere point. It is rebuilt as a mesh with one vertex per pixel, two triangles per
+pixel square (split along the octahedron's edges), and the border glued as the unfolding
+prescribes: pixel ``(0, j)`` neighbours ``(0, n-1-j)`` across the top edge, likewise on the
+other three edges, and the four corner pixels surround the south pole. The mesh is closed and
+crack-free whatever values the image holds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import octahedral
+
+__all__ = ["locate", "mesh_from_image", "sample", "triangulation"]
+
+
+def _neighbours(faces: np.ndarray) -> np.ndarray:
+    """Face across the edge opposite each corner, shape (F, 3), for a closed oriented mesh."""
+    n = int(faces.max()) + 1
+    start = faces[:, [1, 2, 0]].astype(np.int64)  # edge opposite corner k runs k+1 -> k+2
+    end = faces[:, [2, 0, 1]].astype(np.int64)
+    key = (start * n + end).ravel()
+    order = np.argsort(key)
+    where = np.searchsorted(key[order], (end * n + start).ravel()).clip(0, key.size - 1)
+    return (order[where] // 3).reshape(faces.shape)
+
+
+def locate(faces: np.ndarray, points: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Find the spherical triangle holding each query direction, and its barycentric weights.
+
+    Walks from the triangle of the nearest vertex towards each query, all queries at once,
+    crossing the edge whose side test fails worst; the few that do not arrive in time are
+    tested against every triangle.
+
+    Parameters
+    ----------
+    faces : ndarray of int, shape (F, 3)
+    points : ndarray of float, shape (V, 3)
+        A flip-free spherical triangulation (unit vectors).
+    queries : ndarray of float, shape (Q, 3)
+        Unit vectors.
+
+    Returns
+    -------
+    face : ndarray of int, shape (Q,)
+    weights : ndarray of float, shape (Q, 3)
+        Non-negative, summing to 1: the query's central projection on the chord triangle.
+    """
+    from scipy.spatial import cKDTree
+
+    neighbours = _neighbours(faces)
+    vertex_face = np.empty(len(points), dtype=np.int64)
+    vertex_face[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
+    current = vertex_face[cKDTree(points).query(queries)[1]]
+
+    def side_tests(face, q):
+        t = points[faces[face]]  # (Q, 3, 3)
+        return np.stack(
+            [
+                np.einsum("ij,ij->i", q, np.cross(t[:, 1], t[:, 2])),
+                np.einsum("ij,ij->i", q, np.cross(t[:, 2], t[:, 0])),
+                np.einsum("ij,ij->i", q, np.cross(t[:, 0], t[:, 1])),
+            ],
+            axis=1,
+        )
+
+    active = np.arange(len(queries))
+    for _ in range(4 * int(np.sqrt(len(faces))) + 10):
+        tests = side_tests(current[active], queries[active])
+        worst = np.argmin(tests, axis=1)
+        moving = tests[np.arange(active.size), worst] < 0
+        if not moving.any():
+            active = active[:0]
+            break
+        active = active[moving]
+        current[active] = neighbours[current[active], worst[moving]]
+    for index in active:  # queries the walk did not bring home
+        tests = side_tests(np.arange(len(faces)), np.broadcast_to(queries[index], (len(faces), 3)))
+        current[index] = np.argmax(tests.min(axis=1))
+    weights = np.clip(side_tests(current, queries), 0.0, None)
+    weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-300)
+    return current, weights
+
+
+def sample(
+    vertices: np.ndarray, faces: np.ndarray, points: np.ndarray, size: int, normals: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Sample the mesh positions (and normals) on the octahedral grid.
+
+    Parameters
+    ----------
+    vertices : ndarray of float, shape (V, 3)
+        Mesh positions (any unit).
+    faces : ndarray of int, shape (F, 3)
+    points : ndarray of float, shape (V, 3)
+        The spherical parameterization (unit vectors).
+    size : int
+        Side ``n`` of the image.
+    normals : ndarray of float, shape (V, 3), optional
+        Vertex normals to interpolate.
+
+    Returns
+    -------
+    image : ndarray of float, shape (n, n, 3)
+        Positions, in the mesh's unit.
+    normal_map : ndarray of float, shape (n, n, 3), or None
+        Unit normals interpolated at the same points.
+    """
+    queries = octahedral.square_to_sphere(octahedral.grid(size)).reshape(-1, 3)
+    face, weights = locate(faces, points, queries)
+    corners = faces[face]
+    image = np.einsum("qk,qkc->qc", weights, vertices[corners]).reshape(size, size, 3)
+    if normals is None:
+        return image, None
+    normal_map = np.einsum("qk,qkc->qc", weights, normals[corners])
+    normal_map /= np.maximum(np.linalg.norm(normal_map, axis=1, keepdims=True), 1e-300)
+    return image, normal_map.reshape(size, size, 3)
+
+
+def triangulation(size: int) -> np.ndarray:
+    """Faces of the closed mesh on the pixels of a ``size`` x ``size`` geometry image.
+
+    Vertex ``i * size + j`` is pixel ``(i, j)``. Interior squares are split along the
+    octahedron's edges (the diagonals of the four quadrants); the border squares close the
+    fold of each edge; two triangles join the four corners around the south pole. Faces turn
+    counterclockwise seen from outside.
+
+    Returns
+    -------
+    ndarray of int, shape (2 size^2 - 4, 3)
+    """
+    if size < 4 or size % 2:
+        raise ValueError(f"a geometry image needs an even side of at least 4, got {size}")
+    n = size
+    index = np.arange(n * n).reshape(n, n)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    a, b, c, d = index[i, j], index[i, j + 1], index[i + 1, j + 1], index[i + 1, j]
+    # The octahedron's edges run along (1, 1) where u v < 0 and along (1, -1) where u v > 0.
+    along_main = ((2 * i + 2 - n) * (2 * j + 2 - n) <= 0).ravel()
+    a, b, c, d = a.ravel(), b.ravel(), c.ravel(), d.ravel()
+    interior = np.concatenate(
+        [
+            np.where(along_main[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1)),
+            np.where(along_main[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1)),
+        ]
+    )
+    # Fold of each edge: the border row or column, and itself reversed, bound a strip of
+    # squares (k, k+1, n-2-k, n-1-k) for k < n/2 - 1.
+    k = np.arange(n // 2 - 1)
+    strips = []
+    for line in (index[0, :], index[:, -1], index[-1, ::-1], index[::-1, 0]):  # clockwise in the image
+        p, q, r, s = line[k], line[k + 1], line[n - 2 - k], line[n - 1 - k]
+        strips += [np.stack([p, s, r], 1), np.stack([p, r, q], 1)]
+    corners = np.array(
+        [[index[0, 0], index[-1, 0], index[-1, -1]], [index[0, 0], index[-1, -1], index[0, -1]]]
+    )
+    return np.concatenate([interior, *strips, corners]).astype(np.int64)
+
+
+def mesh_from_image(image: np.ndarray):
+    """The closed mesh of a geometry image.
+
+    Parameters
+    ----------
+    image : ndarray of float, shape (n, n, 3)
+        Positions; ``n`` even.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        ``n^2`` vertices and ``2 n^2 - 4`` faces (closed, genus 0, nothing merged).
+    """
+    import trimesh
+
+    image = np.asarray(image, dtype=np.float64)
+    if image.ndim != 3 or image.shape[0] != image.shape[1] or image.shape[2] != 3:
+        raise ValueError(f"a geometry image is a square n x n x 3 array, got shape {image.shape}")
+    return trimesh.Trimesh(image.reshape(-1, 3), triangulation(image.shape[0]), process=False)

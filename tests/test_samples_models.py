@@ -1,0 +1,46 @@
+"""The generated test surfaces of issue 3: the paper's functional model and the bump map."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bandelets.samples import blurred_edge, bump_normal_map, crease_height, crease_normal_map, normal_map
+
+
+@pytest.mark.parametrize("profile", ["step", "tangent"])
+def test_blurred_edge_is_deterministic_and_seeded(profile):
+    a = blurred_edge(48, profile)
+    assert a.shape == (48, 48) and a.dtype == np.float64 and np.all(np.isfinite(a))
+    assert np.array_equal(a, blurred_edge(48, profile))
+    assert not np.allclose(a, blurred_edge(48, profile, seed=1))
+    assert 0.0 <= a.min() and a.max() <= 1.0
+
+
+def test_the_step_is_sharp_at_the_left_and_blurred_at_the_right():
+    jumps = np.abs(np.diff(blurred_edge(128, "step"), axis=0))
+    assert jumps[:, :16].max() > 0.2  # close to the full step of 0.35 in one pixel
+    assert jumps[:, -16:].max() < 0.05  # spread over several pixels
+
+
+def test_the_tangent_edge_is_continuous_but_kinked():
+    f = blurred_edge(128, "tangent")
+    assert np.abs(np.diff(f, axis=0)).max() < 0.03  # no step
+    second = np.abs(np.diff(f, n=2, axis=0))
+    assert second[:, :16].max() > 10 * np.median(second)  # the slope jumps at the sharp end
+
+
+def test_unknown_profile():
+    with pytest.raises(ValueError, match="profile"):
+        blurred_edge(16, "ramp")
+
+
+def test_bump_normal_map_is_seeded_unit_vectors():
+    n = bump_normal_map(64)
+    assert n.shape == (64, 64, 3)
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0) and n[..., 2].min() > 0.5
+    assert np.array_equal(n, bump_normal_map(64)) and not np.allclose(n, bump_normal_map(64, seed=3))
+
+
+def test_normal_map_of_the_crease_height_is_the_crease_map():
+    assert np.allclose(normal_map(crease_height, 32), crease_normal_map(32), atol=1e-12)

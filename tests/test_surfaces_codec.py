@@ -1,0 +1,94 @@
+"""Geometry images, the glued mesh, Hausdorff PSNR, mesh coding and the mesh commands."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+trimesh = pytest.importorskip("trimesh")
+pytest.importorskip("pymeshlab")
+
+from bandelets.cli import main  # noqa: E402
+from bandelets.surfaces import octahedral  # noqa: E402
+from bandelets.surfaces.checks import check_genus0  # noqa: E402
+from bandelets.surfaces.codec import decode_mesh, encode_mesh, make_geometry_image  # noqa: E402
+from bandelets.surfaces.geometry_image import mesh_from_image, triangulation  # noqa: E402
+from bandelets.surfaces.metrics import hausdorff_psnr  # noqa: E402
+
+KNIGHT = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes" / "decimated-knight.off"
+
+
+@pytest.mark.parametrize("size", [4, 6, 32])
+def test_triangulation_is_closed_genus0_and_faces_out(size):
+    faces = triangulation(size)
+    points = octahedral.square_to_sphere(octahedral.grid(size)).reshape(-1, 3)
+    check_genus0(points, faces)
+    q = points[faces]
+    assert np.all(np.einsum("ij,ij->i", q[:, 0], np.cross(q[:, 1], q[:, 2])) > 0)
+
+
+def test_odd_size_refused():
+    with pytest.raises(ValueError, match="even side"):
+        triangulation(33)
+
+
+def test_sphere_geometry_image_lies_on_the_sphere():
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    image = make_geometry_image(sphere, 32)
+    radius = np.linalg.norm(image.positions, axis=2)
+    assert radius.max() <= 1 + 1e-9 and radius.min() > 0.98
+    assert np.allclose(np.linalg.norm(image.normals, axis=2), 1.0)
+    # On a sphere the outward normal is the position direction.
+    assert np.min(np.sum(image.normals * image.positions / radius[..., None], axis=2)) > 0.99
+
+
+def test_psnr_of_a_known_displacement():
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    moved = sphere.copy()
+    moved.vertices = moved.vertices * 1.01  # every point moves by 0.01 along the normal
+    expected = 20 * np.log10(2 * np.sqrt(3) / 0.01)
+    assert hausdorff_psnr(sphere, moved, samples=20_000) == pytest.approx(expected, abs=0.05)
+
+
+def test_encode_decode_mesh_is_closed_and_close():
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    image = make_geometry_image(mesh, 32).positions
+    data = encode_mesh(mesh, image=image, n_bytes=1500)
+    assert len(data) <= 1500
+    decoded = decode_mesh(data)
+    check_genus0(decoded.vertices, decoded.faces)
+    assert decoded.is_watertight and decoded.volume > 0
+    assert hausdorff_psnr(mesh_from_image(image), decoded, samples=20_000) > 35
+
+
+def test_decode_mesh_refuses_other_kinds():
+    from bandelets import encode
+
+    data = encode(np.random.default_rng(0).random((16, 16)), bpp=4.0)
+    with pytest.raises(ValueError, match="not a mesh file"):
+        decode_mesh(data)
+
+
+def test_mesh_commands(tmp_path, capsys):
+    if not KNIGHT.is_file():
+        pytest.skip(f"{KNIGHT} is absent: the real test meshes live beside the project, not in it")
+    bdl, obj = tmp_path / "k.bdl", tmp_path / "k.obj"
+    assert main(["mesh-encode", str(KNIGHT), str(bdl), "--size", "32", "--bits-per-vertex", "16"]) == 0
+    assert bdl.stat().st_size <= 16 * 502 / 8
+    assert main(["mesh-decode", str(bdl), str(obj)]) == 0
+    decoded = trimesh.load(obj, force="mesh", process=False)
+    assert len(decoded.vertices) == 32 * 32 and decoded.is_watertight
+    gi, normals = tmp_path / "g.npy", tmp_path / "n.png"
+    assert main(["geometry-image", str(KNIGHT), str(gi), "--size", "16", "--normals", str(normals)]) == 0
+    assert np.load(gi).shape == (16, 16, 3) and normals.stat().st_size > 0
+
+
+def test_mesh_command_errors(tmp_path, capsys):
+    torus = tmp_path / "torus.off"
+    torus.write_bytes(trimesh.creation.torus(1.0, 0.3).export(file_type="off").encode())
+    assert main(["mesh-encode", str(torus), str(tmp_path / "t.bdl")]) == 2
+    assert "genus 1" in capsys.readouterr().err
+    assert not (tmp_path / "t.bdl").exists()
+    assert main(["mesh-decode", str(tmp_path / "missing.bdl"), str(tmp_path / "x.stl")]) == 2
+    assert main(["geometry-image", str(torus), str(tmp_path / "t.png")]) == 2
+    assert "unsupported output format" in capsys.readouterr().err
