@@ -40,7 +40,7 @@ def collect(size: int, transform_1d: str, thresholds: list[float]):
                 codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients
             ]
             _, _, spent = codec.code_image(
-                codec._new_coders(), header, trees, [quantize(b, t).ravel() for b in bands]
+                codec.new_coders(), header, trees, [quantize(b, t).ravel() for b in bands]
             )
             for b, ledger in zip(bands, spent, strict=True):
                 ledger = ledger.reshape(b.shape)

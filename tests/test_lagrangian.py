@@ -201,7 +201,7 @@ def _model_and_actual_bits(image, kind, transform_1d, thresholds):
         trees = codec._best_trees(coefficients, levels, t, "wavelet", transform_1d)
         bands = [codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients]
         quantized = [quantize(b, t).ravel() for b in bands]
-        _, _, spent = codec.code_image(codec._new_coders(), header, trees, quantized)
+        _, _, spent = codec.code_image(codec.new_coders(), header, trees, quantized)
         for b, bits in zip(bands, spent, strict=True):
             bits = bits.reshape(b.shape)
             for (_, _, where), tree in zip(subband_slices(b.shape, levels), trees, strict=True):
@@ -233,7 +233,7 @@ def test_coder_ledger_matches_the_file_size(crease_map):
     trees = codec._best_trees(coefficients, levels, t, "bandelet", "alpert2")
     bands = [codec._apply_trees(c, levels, trees, codec.bandeletize, "alpert2") for c in coefficients]
     quantized = [quantize(b, t).ravel() for b in bands]
-    coders = codec._new_coders()
+    coders = codec.new_coders()
     _, _, spent = codec.code_image(coders, header, trees, quantized)
     stream = coders[2].finish()
     total = sum(float(s.sum()) for s in spent)

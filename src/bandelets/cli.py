@@ -9,6 +9,7 @@ file and renamed, so a failed command leaves nothing behind.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -157,27 +158,25 @@ def _encode(args) -> None:
 
 
 def _decode(args) -> None:
-    from .bitstream import FormatError
+    from .bitstream import unpack
     from .codec import decode_parsed
     from .files import write_array
 
     _check_output(args.input, args.output, args.force)
-    _, header, streams = _unpack_bdl(args.input)
-    try:
+    with _about(args.input):
+        header, streams = unpack(_read_bdl(args.input))
         decoded = decode_parsed(header, streams)
-    except FormatError as err:
-        raise ValueError(f"{args.input}: {err}") from None
     write_array(args.output, decoded, header.kind, header.depth)
 
 
-def _unpack_bdl(path: str):
-    """``(data, header, streams)`` of a .bdl file; errors name the file."""
-    from .bitstream import FormatError, unpack
-
-    data = _read_bdl(path)
+@contextlib.contextmanager
+def _about(path: str):
+    """Name ``path`` in the message of any ValueError raised inside (a bad .bdl file)."""
     try:
-        return (data, *unpack(data))
-    except FormatError as err:
+        yield
+    except ValueError as err:
+        if str(err).startswith(f"{path}:"):
+            raise
         raise ValueError(f"{path}: {err}") from None
 
 
@@ -188,10 +187,12 @@ def _read_bdl(path: str) -> bytes:
 
 
 def _info(args) -> None:
-    from .bitstream import FORMAT_VERSION
+    from .bitstream import FORMAT_VERSION, unpack
     from .metrics import bits_per_pixel
 
-    data, header, streams = _unpack_bdl(args.input)
+    data = _read_bdl(args.input)
+    with _about(args.input):
+        header, streams = unpack(data)
     info = {
         "width": header.width,
         "height": header.height,
@@ -257,7 +258,8 @@ def _show(args) -> None:
     from .show import geometry_figure
 
     _check_output(args.input, args.output, args.force)
-    geometry_figure(_read_bdl(args.input), Path(args.output))
+    with _about(args.input):
+        geometry_figure(_read_bdl(args.input), Path(args.output))
 
 
 def _mesh_encode(args) -> None:
@@ -284,7 +286,9 @@ def _mesh_decode(args) -> None:
     file_type = Path(args.output).suffix.lower().lstrip(".")
     if file_type not in MESH_FORMATS:
         raise ValueError(f"{args.output}: unsupported mesh format; use .obj, .ply or .off")
-    write_atomic(args.output, mesh_bytes(decode_mesh(_read_bdl(args.input)), file_type))
+    with _about(args.input):
+        mesh = decode_mesh(_read_bdl(args.input))
+    write_atomic(args.output, mesh_bytes(mesh, file_type))
 
 
 def _geometry_image(args) -> None:

@@ -241,7 +241,7 @@ def code_image(
     return out, quantized, spent
 
 
-def _new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
+def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
     sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS, entropy.coefficient_contexts())
     return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
 
@@ -306,7 +306,7 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     sse = sum(
         float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True)
     )
-    splits, dirs, coeffs = coders = _new_coders()
+    splits, dirs, coeffs = coders = new_coders()
     code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse)
@@ -343,7 +343,7 @@ def decode(data: bytes, **limits) -> np.ndarray:
 
 def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack`."""
-    coders = _new_coders(streams)
+    coders = new_coders(streams)
     shape = padded_shape((header.height, header.width), header.levels)
     try:
         trees, quantized, _ = code_image(coders, header)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .bandeletize import debandeletize
 from .bitstream import Header, unpack
-from .codec import _new_coders, code_image
+from .codec import code_image, new_coders
 from .geometry import directions
 from .quantize import dequantize
 from .wavelets import padded_shape, subband_slices
@@ -82,7 +82,7 @@ def geometry_figure(data: bytes, path: Path) -> None:
     from .plots import save
 
     header, streams = unpack(data)
-    trees, quantized, _ = code_image(_new_coders(streams), header)
+    trees, quantized, _ = code_image(new_coders(streams), header)
     magnitudes = wavelet_magnitudes(header, trees, quantized)
     outlines, flows = _segments(header, trees)
     height, width = magnitudes.shape
