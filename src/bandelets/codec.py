@@ -16,6 +16,7 @@ import numpy as np
 from . import entropy, metrics, ratecontrol
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
 from .bitstream import HEADER_BYTES, KINDS, TRANSFORMS, FormatError, Header, pack, unpack
+from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
@@ -84,14 +85,26 @@ def _best_trees(
             predicted = predicted_directions(
                 reference, (covered.shape[1] // width, covered.shape[2] // width), width
             )
+            hints = _children_directions(dirs[-1], width) if dirs else None
             cost, d = best_directions(
-                covered, width, threshold, transform_1d=transform_1d, predicted=predicted
+                covered, width, threshold, transform_1d=transform_1d, predicted=predicted, hints=hints
             )
             costs.append(cost)
             dirs.append(d)
             width *= 2
         trees.append(best_quadtree(costs, dirs, LAMBDA * threshold * threshold))
     return trees
+
+
+def _children_directions(children: np.ndarray, width: int) -> np.ndarray:
+    """The directions of the four half-size squares of every square of ``width``, as indices
+    at ``width`` (-1 for NULL): where the search of the larger square starts."""
+    rows, cols = children.shape[0] // 2, children.shape[1] // 2
+    quads = children.reshape(rows, 2, cols, 2).transpose(0, 2, 1, 3).reshape(rows, cols, 4)
+    out = np.full(quads.shape, -1, np.int64)
+    some = quads >= 0
+    out[some] = nearest_direction(directions(width // 2)[0][quads[some]], width)
+    return out
 
 
 def _apply_trees(

@@ -20,7 +20,7 @@ from math import gcd
 
 import numpy as np
 
-__all__ = ["critical_angles", "directions", "zigzag"]
+__all__ = ["critical_angles", "directions", "nearest_direction", "zigzag"]
 
 
 @cache
@@ -92,3 +92,21 @@ def zigzag(width: int) -> np.ndarray:
     out = np.lexsort((along, diagonal))
     out.flags.writeable = False
     return out
+
+
+def nearest_direction(angles: np.ndarray, width: int) -> np.ndarray:
+    """Index of the reordering of a ``width x width`` square closest to each angle.
+
+    Parameters
+    ----------
+    angles : ndarray of float
+        Radians; compared cyclically modulo pi.
+    width : int
+
+    Returns
+    -------
+    ndarray of int64, same shape as ``angles``.
+    """
+    table = directions(width)[0]
+    distance = np.abs(np.asarray(angles, float)[..., None] - table)
+    return np.argmin(np.minimum(distance, np.pi - distance), axis=-1)

@@ -144,6 +144,7 @@ def _search(
     predicted: np.ndarray,
     allow_directions: bool,
     stride: int,
+    hints: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     channels = subbands.shape[0]
     n_dirs = orders.shape[0]
@@ -170,24 +171,36 @@ def _search(
         for k in range(channels):
             if np.sum(squares[k] ** 2) > threshold * threshold:
                 quiet = False
+        n_hints = hints.shape[2]
+        has_hints = stride > 1 and n_hints > 0 and np.max(hints[r, c]) >= 0
+        # A large square none of whose half-size squares found a direction is unlikely to
+        # have one: it is scanned four times more coarsely.
+        scan = 4 * stride if stride > 1 and n_hints > 0 and not has_hints else stride
         if allow_directions and not quiet:
             signal = np.empty(n)
             tmp = np.empty(n)
             guess = predicted[r, c]
-            # Progressive refinement: every stride-th direction, then the neighbours of the
-            # best of those and of the predicted direction.
-            for step in range(3):
-                if step == 0:
-                    first, last, every = 0, n_dirs - 1, stride
-                else:
-                    centre = best[r, c] if step == 1 else guess
-                    if stride == 1 or centre < 0:
+            # Progressive refinement: the directions near the hints (the best directions of
+            # the four half-size squares inside) or, without hints, every stride-th
+            # direction; then the neighbours of the best so far and of the predicted one.
+            for step in range(n_hints + 3):
+                if step < n_hints:
+                    centre = hints[r, c, step]
+                    if not has_hints or centre < 0:
                         continue
                     first, last, every = centre - stride + 1, centre + stride - 1, 1
+                elif step == n_hints:
+                    if has_hints:
+                        continue
+                    first, last, every = 0, n_dirs - 1, scan
+                else:
+                    centre = best[r, c] if step == n_hints + 1 else guess
+                    if stride == 1 or centre < 0:
+                        continue
+                    radius = scan if step == n_hints + 1 else stride
+                    first, last, every = centre - radius + 1, centre + radius - 1, 1
                 for dd in range(first, last + 1, every):
                     d = dd % n_dirs
-                    if step > 0 and d % stride == 0:
-                        continue
                     if guess < 0:
                         candidate = price * direction_bits
                     else:
@@ -216,6 +229,7 @@ def best_directions(
     allow_directions: bool = True,
     transform_1d: str = "alpert2",
     predicted: np.ndarray | None = None,
+    hints: np.ndarray | None = None,
     model: np.ndarray = RATE_MODEL,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Best Lagrangian and direction of every square of ``width`` tiling ``subbands``.
@@ -240,6 +254,10 @@ def best_directions(
     predicted : ndarray of int, shape (h // width, w // width), optional
         Direction each square's geometry coder will predict (-1: none); directions near it
         are priced at what coding them as an offset costs.
+    hints : ndarray of int, shape (h // width, w // width, n), optional
+        Directions (indices at this width, -1: none) worth searching around first, for
+        instance those chosen for the four half-size squares inside. For widths with many
+        directions a square with hints searches only around them.
 
     Returns
     -------
@@ -252,6 +270,8 @@ def best_directions(
     shape = (subbands.shape[1] // width, subbands.shape[2] // width)
     if predicted is None:
         predicted = np.full(shape, -1, np.int64)
+    if hints is None:
+        hints = np.full(shape + (0,), -1, np.int64)
     return _search(
         np.ascontiguousarray(subbands, dtype=np.float64),
         width,
@@ -264,4 +284,5 @@ def best_directions(
         np.ascontiguousarray(predicted, dtype=np.int64),
         allow_directions,
         REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
+        np.ascontiguousarray(hints, dtype=np.int64),
     )

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import entropy
 from .bitstream import FormatError
-from .geometry import directions
+from .geometry import directions, nearest_direction
 from .quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
 
 __all__ = ["code_tree", "predicted_directions", "reference_of", "N_SPLIT_CONTEXTS", "N_DIRECTION_CONTEXTS"]
@@ -76,13 +76,6 @@ class _Reference:
         return widths, np.where(inside, self.angles[r, c], np.nan)
 
 
-def _nearest(angles: np.ndarray, width: int) -> np.ndarray:
-    """Index of the direction of ``width`` closest to each angle, cyclically in [0, pi)."""
-    table = directions(width)[0]
-    distance = np.abs(angles[:, None] - table[None, :])
-    return np.argmin(np.minimum(distance, np.pi - distance), axis=1)
-
-
 def reference_of(trees: list[Quadtree], index: int, orientation: int) -> _Reference:
     """The reference of detail subband ``index`` among the ``trees`` of the subbands before it."""
     if orientation > 0:
@@ -96,7 +89,7 @@ def predicted_directions(reference: _Reference, cells: tuple[int, int], width: i
     _, angle = reference.at(r, c)
     out = np.full(angle.shape, -1, np.int64)
     known = ~np.isnan(angle)
-    out[known] = _nearest(angle[known], width)
+    out[known] = nearest_direction(angle[known], width)
     return out.reshape(cells)
 
 
@@ -135,7 +128,7 @@ def _code_directions(coder, tree, reference, activity, decoded):
         n_dirs = directions(width)[1].shape[0]
         # With a reference: cyclic offset from the direction nearest to its angle.
         pick = np.nonzero((has == 1) & predicted & (level == k))[0]
-        guess = _nearest(ref_angle[pick], width)
+        guess = nearest_direction(ref_angle[pick], width)
         offset = (dirs[pick] - guess + n_dirs // 2) % n_dirs - n_dirs // 2 if tree else np.zeros(pick.shape)
         nonzero = entropy.code_flags(coder, offset != 0, np.full(pick.shape, _ZERO + k))
         moved = np.nonzero(nonzero)[0]
