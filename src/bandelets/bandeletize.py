@@ -125,19 +125,18 @@ def transform_rows(x: np.ndarray, kind: str = "alpert2", inverse: bool = False) 
 
 
 def _square_groups(tree):
-    """Yield ``(width, direction, flat indices of the squares' samples)`` per group.
+    """Yield ``(width, orders, rows, cols)`` for the bandelet squares of each width.
 
-    The indices are into the subband raveled row-major, shape ``(n_squares, L*L)``, row-major
-    inside each square.
+    ``orders`` (n_squares, L*L) is each square's reordering; ``rows`` and ``cols``
+    (n_squares, L, L) index the squares' samples in the subband.
     """
     top, left, widths, dirs = tree.leaves()
-    for width in np.unique(widths):
-        for d in np.unique(dirs[(widths == width) & (dirs >= 0)]):
-            pick = (widths == width) & (dirs == d)
-            offsets = np.arange(width)
-            rows = top[pick, None, None] + offsets[None, :, None]
-            cols = left[pick, None, None] + offsets[None, None, :]
-            yield int(width), int(d), rows, cols
+    for width in np.unique(widths[dirs >= 0]):
+        pick = (widths == width) & (dirs >= 0)
+        offsets = np.arange(width)
+        rows = top[pick, None, None] + offsets[None, :, None]
+        cols = left[pick, None, None] + offsets[None, None, :]
+        yield int(width), directions(int(width))[1][dirs[pick]], rows, cols
 
 
 def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
@@ -155,27 +154,25 @@ def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     Returns
     -------
     ndarray, shape (h, w): the wavelet coefficients with every square that has a direction
-    replaced by its 1D Haar coefficients in zig-zag order.
+    replaced by its 1D coefficients in zig-zag order.
     """
     out = subband.copy()
-    for width, d, rows, cols in _square_groups(tree):
-        order = directions(width)[1][d]
+    for width, orders, rows, cols in _square_groups(tree):
         squares = subband[rows, cols].reshape(len(rows), -1)
-        coeffs = transform_rows(squares[:, order], kind)
+        coeffs = transform_rows(np.take_along_axis(squares, orders, axis=1), kind)
         stored = np.empty_like(coeffs)
         stored[:, zigzag(width)] = coeffs
-        out[rows, cols] = stored.reshape(rows.shape[0], width, width)
+        out[rows, cols] = stored.reshape(len(rows), width, width)
     return out
 
 
 def debandeletize(coefficients: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     """Inverse of :func:`bandeletize`: wavelet coefficients of the subband."""
     out = coefficients.copy()
-    for width, d, rows, cols in _square_groups(tree):
-        order = directions(width)[1][d]
+    for _, orders, rows, cols in _square_groups(tree):
         stored = coefficients[rows, cols].reshape(len(rows), -1)
-        signal = transform_rows(stored[:, zigzag(width)], kind, inverse=True)
+        signal = transform_rows(stored[:, zigzag(rows.shape[1])], kind, inverse=True)
         squares = np.empty_like(signal)
-        squares[:, order] = signal
-        out[rows, cols] = squares.reshape(rows.shape[0], width, width)
+        np.put_along_axis(squares, orders, signal, axis=1)
+        out[rows, cols] = squares.reshape(len(rows), rows.shape[1], rows.shape[1])
     return out

@@ -14,6 +14,7 @@ each level in raster order of the nodes that exist there.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -86,7 +87,18 @@ class Quadtree:
             out[level - 1] = _upsample(out[level] & ~self.leaf[level])
         return out
 
+    @cached_property
+    def _leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self._find_leaves()
+
     def leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``rows, cols, widths, directions`` of every leaf, in coding order (see ``_find_leaves``).
+
+        Computed once per quadtree; the arrays are shared, do not modify them.
+        """
+        return self._leaves
+
+    def _find_leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``rows, cols, widths, directions`` of every leaf, in coding order.
 
         Coding order is raster order of the root squares, then Z (Morton) order inside a

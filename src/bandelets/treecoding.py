@@ -188,11 +188,14 @@ def code_tree(
     if root == 0:
         return flat_quadtree(shape, 0)
     leaf, cells = _code_splits(splits, tree, reference, activity, shape, root)
-    decoded = Quadtree(root, tuple(leaf), tuple(np.full(c, -1, np.int64) for c in cells))
-    rows, cols, widths, found = _code_directions(dirs, tree, reference, activity, decoded)
+    direction = tuple(np.full(c, -1, np.int64) for c in cells)
+    rows, cols, widths, found = _code_directions(
+        dirs, tree, reference, activity, Quadtree(root, tuple(leaf), direction)
+    )
     if tree is not None:
         return tree
-    for level, direction in enumerate(decoded.direction):
+    for level, d in enumerate(direction):
         at = widths == MIN_WIDTH << level
-        direction[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
-    return decoded
+        d[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
+    # A new tree: the one the directions were decoded with has its leaves cached without them.
+    return Quadtree(root, tuple(leaf), direction)
