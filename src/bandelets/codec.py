@@ -484,8 +484,8 @@ def encode_with_stats(
                 f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
                 f"{HEADER_BYTES} bytes of header"
             )
-        # Start where about one coefficient in six bits of the budget is significant.
-        t_guess = float(magnitudes[min(max(target * 8 // 6, 1), magnitudes.size - 1)]) or t_max / 1e3
+        # Start where about one coefficient in seven bits of the budget is significant.
+        t_guess = float(magnitudes[min(max(target * 8 // 7, 1), magnitudes.size - 1)]) or t_max / 1e3
         return ratecontrol.for_size(encode_at, target, t_max, t_guess, progress)
     if not np.isfinite(psnr):
         raise ValueError(f"psnr must be a finite number, got {psnr}")

@@ -106,7 +106,7 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, t_guess: floa
         return math.log(size), done, size > target_bytes
 
     with tqdm(desc="rate control", unit="encode", disable=not progress, leave=False) as bar:
-        _search(measure, goal, math.log(t_guess), floor, math.log(t_max), -1.0, bar)
+        _search(measure, goal, math.log(t_guess), floor, math.log(t_max), -0.6, bar)
         if best is None:  # the search wandered: the smallest file is the answer, if it fits
             measure(math.log(t_max))
     return best
