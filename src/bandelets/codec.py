@@ -15,7 +15,18 @@ import numpy as np
 
 from . import entropy, metrics, ratecontrol
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
-from .bitstream import HEADER_BYTES, KINDS, TRANSFORMS, FormatError, Header, pack, unpack
+from .bitstream import (
+    HEADER_BYTES,
+    KINDS,
+    MAX_MEMORY,
+    TRANSFORMS,
+    FormatError,
+    Header,
+    check_memory,
+    encoder_memory,
+    pack,
+    unpack,
+)
 from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
@@ -263,8 +274,13 @@ def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.
 # Images in and out.
 
 
-def check_image(array, kind: str) -> np.ndarray:
-    """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable."""
+def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
+    """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable.
+
+    An image whose encoding would need more than ``max_memory`` bytes
+    (:func:`bandelets.bitstream.encoder_memory`) is refused before any work on it (a float64
+    array is not copied; another dtype is converted first).
+    """
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(KINDS)}")
     try:
@@ -279,6 +295,12 @@ def check_image(array, kind: str) -> np.ndarray:
         raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
     if kind != "image" and x.shape[2] != 3:
         raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
+    need = encoder_memory(*x.shape)
+    if need > max_memory:
+        raise ValueError(
+            f"encoding a {x.shape[1]} x {x.shape[0]} x {x.shape[2]} image needs about "
+            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB (max_memory)"
+        )
     if not np.all(np.isfinite(x)):
         raise ValueError("input contains NaN or infinite values")
     return x
@@ -330,13 +352,16 @@ def wavelet_coefficients(x: np.ndarray, wavelet: str, levels: int) -> list[np.nd
     return [wavedec(_pad(x[..., k], levels), wavelet, levels) for k in range(x.shape[2])]
 
 
-def decode(data: bytes, **limits) -> np.ndarray:
+def decode(data: bytes, *, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
     """Decode a .bdl file.
 
     Parameters
     ----------
     data : bytes
         The whole file.
+    max_memory : int
+        Refuse a file whose decoding needs more than this many bytes (estimated from its
+        header, see :func:`bandelets.bitstream.check_memory`; default 2 GiB).
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
 
@@ -351,11 +376,14 @@ def decode(data: bytes, **limits) -> np.ndarray:
         For any corrupt, truncated or unsupported file.
     """
     header, streams = unpack(bytes(data), **limits)
-    return decode_parsed(header, streams)
+    return decode_parsed(header, streams, max_memory=max_memory)
 
 
-def decode_parsed(header: Header, streams: tuple[bytes, bytes, bytes]) -> np.ndarray:
+def decode_parsed(
+    header: Header, streams: tuple[bytes, bytes, bytes], *, max_memory: int = MAX_MEMORY
+) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack`."""
+    check_memory(header, max_memory)
     coders = new_coders(streams)
     shape = padded_shape((header.height, header.width), header.levels)
     try:
@@ -398,6 +426,7 @@ def encode(
     transform_1d: str = "alpert2",
     depth: int = 0,
     progress: bool = False,
+    max_memory: int = MAX_MEMORY,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -420,6 +449,8 @@ def encode(
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
     progress : bool
         Progress bar during rate control.
+    max_memory : int
+        Refuse (``ValueError``) an image whose encoding would need more than this many bytes.
 
     Returns
     -------
@@ -436,6 +467,7 @@ def encode(
         transform_1d=transform_1d,
         depth=depth,
         progress=progress,
+        max_memory=max_memory,
     ).data
 
 
@@ -451,9 +483,10 @@ def encode_with_stats(
     transform_1d="alpert2",
     depth=0,
     progress=False,
+    max_memory=MAX_MEMORY,
 ) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
-    x = check_image(array, kind)
+    x = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
     targets = [v for v in (bpp, threshold, psnr) if v is not None]
@@ -494,6 +527,8 @@ def encode_with_stats(
     t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
 
     def quality(data: bytes) -> float:
-        return metrics.psnr(reference, decode(data), kind)
+        # Our own file: only the caller's memory limit applies, not the limits on foreign files.
+        decoded = decode(data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
+        return metrics.psnr(reference, decoded, kind)
 
     return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, t_guess, progress)

@@ -443,3 +443,4 @@ def code_coefficients(
     )
     if status != 0:
         raise CorruptStream("coded coefficient stream is corrupt")
+    coder.check()  # fail at the first run past the end, not after a whole image of zeros

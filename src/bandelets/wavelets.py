@@ -24,7 +24,7 @@ wavelet too. The Lagrangian of the bandelet search can then work on coefficients
 from __future__ import annotations
 
 import warnings
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pywt
@@ -174,23 +174,40 @@ def _raw_rec(c: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
     return _cdf97_rec(c, levels) if wavelet == "cdf97" else _pywt_rec(c, wavelet, levels)
 
 
-@lru_cache(maxsize=32)
+@cache
+def _synthesis_norms_1d(levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Norms of the 1D CDF 9/7 synthesis functions: scaling and wavelet, levels 1..``levels``.
+
+    Measured by reconstructing a unit impulse in the middle of each band of a signal long
+    enough that the boundary does not reach it.
+    """
+    size = 2 ** (levels + 5)
+    scaling, wavelet = np.empty(levels + 1), np.empty(levels + 1)
+    for level in range(1, levels + 1):
+        for out, offset in ((scaling, 0), (wavelet, size >> level)):
+            x = np.zeros(size)
+            x[offset + (size >> (level + 1))] = 1.0
+            for k in range(level, 0, -1):
+                n = size >> (k - 1)
+                x[:n] = _lift_inverse(x[: n // 2].copy(), x[n // 2 : n].copy())
+            out[level] = np.linalg.norm(x)
+    return scaling, wavelet
+
+
 def _subband_norms(wavelet: str, levels: int) -> tuple[float, ...]:
     """Norm of the synthesis function of the approximation and of each detail subband.
 
-    Measured by reconstructing a unit impulse placed in the middle of the subband, on a grid
-    large enough that the boundary does not reach it. Orthogonal wavelets give 1.
+    Orthogonal wavelets give 1. The CDF 9/7 functions are separable products of 1D scaling
+    and wavelet functions, whose norms multiply.
     """
-    size = 2 ** (levels + 5)
-    shape = (size, size)
-    norms = []
-    corner = size >> levels
-    for where in [(slice(0, corner), slice(0, corner))] + [s for *_, s in subband_slices(shape, levels)]:
-        c = np.zeros(shape)
-        rows, cols = where
-        c[(rows.start + rows.stop) // 2, (cols.start + cols.stop) // 2] = 1.0
-        norms.append(float(np.linalg.norm(_raw_rec(c, wavelet, levels))))
-    return tuple(norms)
+    if wavelet != "cdf97":
+        return (1.0,) * (1 + 3 * levels)
+    scaling, detail = _synthesis_norms_1d(levels)
+    norms = [scaling[levels] ** 2]
+    for level in range(levels, 0, -1):
+        # H: low along the rows, high along the columns; V: the transpose; D: high twice.
+        norms += [scaling[level] * detail[level]] * 2 + [detail[level] ** 2]
+    return tuple(float(n) for n in norms)
 
 
 def _norm_map(shape: tuple[int, int], wavelet: str, levels: int) -> np.ndarray:

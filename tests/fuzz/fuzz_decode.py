@@ -1,0 +1,159 @@
+"""Coverage-guided fuzzing of ``bandelets.decode`` with atheris (libFuzzer).
+
+    pip install atheris
+    python tests/fuzz/fuzz_decode.py -runs=100000 /tmp/bdl-corpus
+
+The corpus folder is created and seeded with the golden files of ``tests/data`` (without
+their CRC) when it holds none. An input is the body of a .bdl file: the harness appends a
+valid CRC32, so the mutations reach the header validation and the range decoders instead of
+dying at the CRC check; the custom mutator also repairs the third stream length after
+mutations that change the size, half of the time. Every input is also decoded as it is.
+
+A crash is anything but a return or a ``ValueError`` (``bandelets.FormatError`` is one), a
+decoded array of the wrong shape or with non-finite values, or a decode slower than
+2 s (with ``BDL_FUZZ_SLOW=record`` in the environment, slow inputs are kept as
+``slow-N.bdl`` and counted instead). Limits are small (``max_side`` 256, 2**16 samples,
+32 MiB) so that no input can legitimately take long. Every 10,000 inputs and at the last of
+``-runs`` the harness prints the number of inputs, the outcomes and the slowest input
+(written to ``slowest.bdl`` in the current folder).
+
+libFuzzer options apply (``-runs``, ``-max_total_time``, ``-jobs``, ``-max_len``...).
+Coverage is Python coverage: the numba-compiled range decoder is not instrumented, the code
+that drives it is.
+"""
+
+from __future__ import annotations
+
+import collections
+import os
+import re
+import struct
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import atheris
+import numpy as np
+
+# The numba-compiled modules cannot be instrumented (numba rejects the inserted calls):
+# import them first, plain, then instrument the Python modules of the decode path.
+import bandelets.bandeletize  # noqa: E402,F401
+import bandelets.entropy  # noqa: E402,F401
+import bandelets.lagrangian  # noqa: E402,F401
+import bandelets.quantize  # noqa: E402,F401
+
+with atheris.instrument_imports(include=["bandelets"]):
+    import bandelets
+    import bandelets.codec  # imported lazily by the package: import it here to instrument it
+    from bandelets.bitstream import FormatError
+    from bandelets.wavelets import MAX_LEVELS, WAVELETS, _subband_norms
+
+LIMITS = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20}
+MAX_SECONDS = 2.0
+#: BDL_FUZZ_SLOW=record: keep slow inputs as slow-N.bdl and go on instead of stopping.
+RECORD_SLOW = os.environ.get("BDL_FUZZ_SLOW") == "record"
+FIXED = 40  # bytes of the fixed header, before the streams
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+stats = collections.Counter()
+slowest = [0.0, b""]
+REPORT_EVERY = 10_000
+runs = [0]  # the -runs=N option, to report before libFuzzer exits (it skips atexit)
+
+
+def with_crc(body: bytes) -> bytes:
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+def run(data: bytes) -> None:
+    start = time.perf_counter()
+    try:
+        out = bandelets.decode(data, **LIMITS)
+    except FormatError as err:
+        reason = re.sub(r"-?\b\d[0-9.e+-]*|nan|inf", "N", str(err).split(": ", 1)[-1])
+        stats["FormatError: " + reason[:50]] += 1
+    except ValueError as err:  # allowed by the contract, but worth knowing about
+        stats[f"other ValueError {type(err).__name__}: {str(err)[:60]}"] += 1
+    else:
+        stats["decoded"] += 1
+        h, w = struct.unpack_from("<II", data, 12)
+        channels = data[9]
+        expected = (h, w) if channels == 1 else (h, w, channels)
+        if out.shape != expected or out.dtype != np.float64 or not np.all(np.isfinite(out)):
+            raise AssertionError(f"bad output {out.shape} {out.dtype} for header {expected}")
+    elapsed = time.perf_counter() - start
+    if elapsed > slowest[0]:
+        slowest[:] = [elapsed, data]
+    if elapsed > MAX_SECONDS:
+        if not RECORD_SLOW:
+            raise AssertionError(f"decode took {elapsed:.2f} s (limit {MAX_SECONDS} s)")
+        stats[f"SLOW (> {MAX_SECONDS} s), kept as slow-*.bdl"] += 1
+        Path(f"slow-{stats['inputs']}.bdl").write_bytes(data)
+
+
+def test_one_input(body: bytes) -> None:
+    stats["inputs"] += 1
+    run(body)
+    run(with_crc(body))
+    if stats["inputs"] % REPORT_EVERY == 0 or stats["inputs"] == runs[0]:
+        report()
+
+
+def repair_lengths(body: bytes) -> bytes:
+    if len(body) < FIXED:
+        return body
+    a, b, _ = struct.unpack_from("<3I", body, 28)
+    c = len(body) - FIXED - a - b
+    if c < 0:
+        return body
+    out = bytearray(body)
+    struct.pack_into("<I", out, 36, c)
+    return bytes(out)
+
+
+def custom_mutator(data: bytes, max_size: int, seed: int) -> bytes:
+    data = atheris.Mutate(data, max_size)
+    return repair_lengths(data) if seed & 1 else data
+
+
+def seed_corpus(folder: Path) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    if any(folder.iterdir()):
+        return
+    for path in sorted(DATA.glob("*.bdl")):
+        (folder / path.name).write_bytes(path.read_bytes()[:-4])
+
+
+def report() -> None:
+    out = sys.stderr
+    print(f"\n[fuzz_decode] {stats['inputs']} inputs (each decoded raw and with a valid CRC)", file=out)
+    for key, n in stats.most_common():
+        if key != "inputs":
+            print(f"[fuzz_decode]   {n:8d}  {key}", file=out)
+    print(f"[fuzz_decode] slowest decode {slowest[0]:.3f} s ({len(slowest[1])} bytes, slowest.bdl)", file=out)
+    Path("slowest.bdl").write_bytes(slowest[1])
+
+
+def main() -> None:
+    folders = [a for a in sys.argv[1:] if not a.startswith("-")]
+    for folder in folders:
+        seed_corpus(Path(folder))
+    # Compile the JIT code and compute the per-process caches (the synthesis norms of every
+    # wavelet and depth: seconds for 6 levels) before the clock of the first input starts.
+    for path in sorted(DATA.glob("*.bdl")):
+        bandelets.decode(path.read_bytes())
+    for wavelet in WAVELETS:
+        for levels in range(1, MAX_LEVELS + 1):
+            _subband_norms(wavelet, levels)
+    runs[0] = next((int(a.split("=", 1)[1]) for a in sys.argv if a.startswith("-runs=")), 0)
+    atheris.Setup(sys.argv, test_one_input, custom_mutator=custom_mutator)
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONWARNINGS", "ignore")
+    import warnings
+
+    warnings.simplefilter("ignore")
+    main()

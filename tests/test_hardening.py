@@ -1,0 +1,185 @@
+"""Hostile files and inputs: a bounded slice of the fuzzing of tests/fuzz/fuzz_decode.py.
+
+Every case must end in a return or a ValueError (FormatError is one), within 2 s; the memory
+estimate refuses, before allocating, files and inputs too large for ``max_memory``.
+"""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+import sys
+import time
+import tracemalloc
+import warnings
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bandelets
+from bandelets.bitstream import MAX_MEMORY, FormatError, Header, decoder_memory, encoder_memory, pack
+
+DATA = Path(__file__).resolve().parent / "data"
+GOLDEN = sorted(DATA.glob("*.bdl"))
+SMALL = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20}
+CASE_SECONDS = 2.0
+
+
+def _crc(body: bytes) -> bytes:
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+def _outcome(data: bytes, **limits) -> str:
+    """Decode; anything but a return or a ValueError, or a slow case, fails the test."""
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            out = bandelets.decode(data, **limits)
+        except ValueError as err:
+            result = type(err).__name__
+        else:
+            assert out.dtype == np.float64 and np.all(np.isfinite(out))
+            result = "decoded"
+    elapsed = time.perf_counter() - start
+    assert elapsed < CASE_SECONDS, f"{elapsed:.2f} s on a {len(data)}-byte input"
+    return result
+
+
+def _repaired(body: bytearray) -> bytes:
+    """``body`` with the last stream length fitted to its size (when possible) and a valid CRC."""
+    if len(body) >= 40:
+        a, b, _ = struct.unpack_from("<3I", body, 28)
+        if len(body) - 40 - a - b >= 0:
+            struct.pack_into("<I", body, 36, len(body) - 40 - a - b)
+    return _crc(bytes(body))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled():
+    for path in GOLDEN:  # JIT compile outside the clock of the cases
+        bandelets.decode(path.read_bytes())
+
+
+def test_random_garbage():
+    rng = np.random.default_rng(1)
+    outcomes = set()
+    for i in range(600):
+        n = int(rng.integers(0, 300))
+        junk = rng.integers(0, 256, n, dtype=np.uint8).tobytes()
+        if i % 3 == 1:
+            junk = b"BDL\x1a\x01" + junk
+        if i % 3 == 2:  # a plausible header, random streams, lengths and CRC made valid
+            junk = bytearray(GOLDEN[i % len(GOLDEN)].read_bytes()[:40] + junk)
+            junk = _repaired(junk)
+        outcomes.add(_outcome(junk, **SMALL))
+    assert "FormatError" in outcomes
+
+
+@pytest.mark.parametrize("path", GOLDEN, ids=lambda p: p.name)
+def test_truncations_behind_a_valid_crc(path):
+    """Every truncation of the body, with the lengths and the CRC repaired: the decoders see it."""
+    body = path.read_bytes()[:-4]
+    outcomes = [_outcome(_repaired(bytearray(body[:n])), **SMALL) for n in range(len(body))]
+    assert outcomes.count("FormatError") > len(body) // 2
+
+
+@pytest.mark.parametrize("path", [DATA / "gray16.bdl", DATA / "normal24x20.bdl"], ids=lambda p: p.name)
+def test_every_single_bit_flip_behind_a_valid_crc(path):
+    body = path.read_bytes()[:-4]
+    outcomes = set()
+    for bit in range(8 * len(body)):
+        b = bytearray(body)
+        b[bit // 8] ^= 1 << (bit % 8)
+        outcomes.add(_outcome(_crc(bytes(b)), **SMALL))
+    assert {"decoded", "FormatError"} <= outcomes
+
+
+def test_random_multi_byte_mutations():
+    rng = np.random.default_rng(2)
+    files = [p.read_bytes()[:-4] for p in GOLDEN]
+    for i in range(600):
+        b = bytearray(files[i % len(files)])
+        for _ in range(int(rng.integers(1, 6))):
+            at = int(rng.integers(0, len(b)))
+            b[at] = int(rng.integers(0, 256))
+        _outcome(_repaired(b), **SMALL)
+
+
+@pytest.mark.parametrize(
+    ("height", "width", "channels"),
+    [(16384, 16384, 1), (8192, 8192, 4), (16384, 1, 1), (1, 16384, 3), (5000, 5000, 3), (2, 1, 1)],
+)
+def test_valid_header_with_absurd_sizes_and_tiny_streams(height, width, channels):
+    """A 100-byte file claiming a huge image is refused at once by the memory estimate."""
+    kind = "image" if channels != 3 else "normal-map"
+    levels = 1
+    header = Header(height, width, channels, kind, "bandelet", "cdf97", levels, 0.1)
+    data = pack(header, (b"\x00" * 20, b"\x00" * 20, b"\x00" * 20))
+    start = time.perf_counter()
+    need = decoder_memory(height, width, channels, levels)
+    if need > MAX_MEMORY:
+        with pytest.raises(FormatError, match=r"needs about \d+ MiB, above the limit of 2048 MiB"):
+            bandelets.decode(data)
+    else:
+        assert _outcome(data) in {"decoded", "FormatError"}
+    assert time.perf_counter() - start < CASE_SECONDS
+
+
+def test_memory_limit_is_overridable_and_exact():
+    data = bandelets.encode(np.zeros((64, 48)), threshold=0.1)
+    need = decoder_memory(64, 48, 1, 2)
+    with pytest.raises(FormatError, match=r"needs about .* MiB, above the limit"):
+        bandelets.decode(data, max_memory=need - 1)
+    assert bandelets.decode(data, max_memory=need).shape == (64, 48)
+
+
+def test_memory_estimate_covers_the_measured_peak():
+    """The estimate is an upper bound of what tracemalloc sees the decoder allocate."""
+    rng = np.random.default_rng(4)
+    for shape in [(256, 256), (128, 192, 3)]:
+        data = bandelets.encode(rng.random(shape), threshold=0.05)
+        bandelets.decode(data)
+        tracemalloc.start()
+        bandelets.decode(data)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        channels = shape[2] if len(shape) == 3 else 1
+        assert peak <= decoder_memory(shape[0], shape[1], channels, 4), (shape, peak)
+
+
+@pytest.mark.parametrize("shape", [(100_000, 100_000), (40_000, 40_000, 3), (8000, 8000, 4)])
+def test_encoder_refuses_huge_inputs_without_allocating_them(shape):
+    huge = np.broadcast_to(np.float64(0.5), shape)  # a view: no memory behind it
+    tracemalloc.start()
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match=r"needs about .* MiB, above the limit"):
+        bandelets.encode(huge, bpp=1.0)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 2**20 and time.perf_counter() - start < CASE_SECONDS
+    assert encoder_memory(shape[0], shape[1], shape[2] if len(shape) == 3 else 1) > MAX_MEMORY
+
+
+def test_encoder_memory_limit_is_overridable():
+    x = np.random.default_rng(5).random((32, 32))
+    with pytest.raises(ValueError, match="max_memory"):
+        bandelets.encode(x, threshold=0.1, max_memory=encoder_memory(32, 32, 1) - 1)
+    assert bandelets.encode(x, threshold=0.1, max_memory=encoder_memory(32, 32, 1))
+
+
+def test_cli_refuses_a_hostile_file_in_one_line(tmp_path):
+    path = tmp_path / "hostile.bdl"
+    header = Header(16384, 16384, 1, "image", "bandelet", "cdf97", 6, 0.1)
+    path.write_bytes(pack(header, (b"\x00" * 20, b"\x00" * 20, b"\x00" * 20)))
+    done = subprocess.run(
+        [sys.executable, "-m", "bandelets", "decode", str(path), str(tmp_path / "out.npy")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "needs about" in done.stderr
+    assert not (tmp_path / "out.npy").exists()
