@@ -22,8 +22,11 @@ generated test surfaces (``benchmarks/calibrate_rate.py`` refits them and
 ``tests/test_lagrangian.py`` checks that the model tracks the real bits).
 
 The search itself (:func:`best_directions`) is compiled with numba and runs over all squares of
-one width in parallel: per square, every reordering of :func:`bandelets.geometry.directions` is
-gathered, Haar-transformed and priced.
+one width in parallel: per square, the reorderings of :func:`bandelets.geometry.directions` are
+gathered, transformed and priced. Widths with few directions (4 and 8) try them all; wider
+squares follow the paper's progressive refinement (every 4th direction, or the neighbourhoods of
+the directions their four half-size squares chose, then around the best and the predicted one),
+which cost 0.04 dB BD-PSNR on the generated crease map for a 3.8x faster search.
 """
 
 from __future__ import annotations
