@@ -370,3 +370,9 @@ def test_bandelets_script_help_is_fast():
     assert done.returncode == 0
     assert "usage: bandelets" in done.stdout
     assert elapsed < 0.5, f"bandelets --help took {elapsed:.2f} s"
+
+
+def test_the_command_line_offers_exactly_the_formats_choices():
+    from bandelets import bitstream, cli
+
+    assert cli.KINDS == bitstream.KINDS and cli.TRANSFORMS == bitstream.TRANSFORMS

@@ -18,6 +18,8 @@ from pathlib import Path
 
 __all__ = ["main"]
 
+# Copies of bandelets.bitstream's names (importing it would load numba before --help);
+# tests/test_cli.py checks they agree.
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
 
