@@ -410,8 +410,16 @@ def decode_parsed(
     if not np.all(np.isfinite(out)):
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
+        if header.channels == 2:
+            out = np.concatenate([out, _rebuilt_z(out)], axis=-1)
         out = metrics.unit_vectors(out)
     return out[..., 0] if header.channels == 1 else out
+
+
+def _rebuilt_z(xy: np.ndarray) -> np.ndarray:
+    """``z = sqrt(1 - x^2 - y^2)`` (0 where the decoded ``x, y`` lie outside the unit disc), shape
+    (H, W, 1), of decoded normals ``xy`` of shape (H, W, 2)."""
+    return np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))
 
 
 def encode(
@@ -434,6 +442,8 @@ def encode(
     ----------
     array : array_like, shape (H, W) or (H, W, C), C <= 4
         Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
+        A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
+        rebuilds ``z``); otherwise as three channels.
     bpp, threshold, psnr : float, exactly one
         Target rate in bits per pixel (the file lands within 3 % below it), quantization
         threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
@@ -496,11 +506,13 @@ def encode_with_stats(
         raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
     _check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
-    coefficients = wavelet_coefficients(x, wavelet, levels)
+    # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
+    coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
+    coefficients = wavelet_coefficients(coded, wavelet, levels)
 
     def encode_at(t: float) -> Encoded:
         header = Header(
-            x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
+            x.shape[0], x.shape[1], coded.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
         )
         return encode_at_threshold(coefficients, header)
 
