@@ -31,7 +31,7 @@ from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
-from .quantize import MAX_INDEX, dequantize, quantize
+from .quantize import MAX_INDEX, RECONSTRUCTION, dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
@@ -216,7 +216,9 @@ def code_image(
     Order: the approximation of every channel, then subband by subband (coarse to fine,
     H, V, D): its quadtree and directions (:mod:`bandelets.treecoding`), then for each
     channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.layout`).
-    After a channel's bandelet squares, the contexts are given the wavelet coefficients those
+    The guide of a channel (a context, see :func:`bandelets.entropy.code_coefficients`) is
+    what the previous channel coded, bandelet coefficients included. After a channel's
+    bandelet squares, the contexts are given the wavelet coefficients those
     squares decode to.
 
     Returns
@@ -234,7 +236,7 @@ def code_image(
     known = [np.zeros(size, np.int64) for _ in quantized]
     spent = [np.zeros(size) for _ in quantized]
     approximation = approximation_plan(shape, header.levels)
-    guides = [np.zeros(0, np.int64)] + known[:-1]
+    guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
         entropy.code_coefficients(coeffs, q, approximation, known[c], guides[c], spent[c])
     out = []
@@ -338,6 +340,13 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
         _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients
     ]
     quantized = [quantize(b, threshold) for b in bandelets]
+    # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
+    # its context, then the bins between 0 and +-1 are chosen again and the image coded again.
+    _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
+    approximation = approximation_plan(bandelets[0].shape, header.levels).order
+    for b, q, bits in zip(bandelets, quantized, spent, strict=True):
+        bits[approximation] = 0.0  # coded as a prediction residual: left alone
+        _optimise_bins(b, q, bits.reshape(q.shape), threshold)
     sse = sum(
         float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True)
     )
@@ -345,6 +354,51 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse)
+
+
+#: Lagrange multiplier of the quantization decisions, in T**2 per bit (the search's LAMBDA).
+RDOQ_LAMBDA = LAMBDA
+#: Dead-zone values above this many T may be coded as +-1 (the quantizer's dead zone is T).
+PROMOTE_ABOVE = 0.7
+#: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
+_SIGN_AND_MAGNITUDE_BITS = 1.5
+
+
+def _optimise_bins(values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshold: float) -> None:
+    """Rate-distortion optimised quantization between 0 and +-1, in place.
+
+    ``Q_T`` decides on magnitude alone; here a coefficient of bin 1 becomes 0, or a value of
+    the dead zone above ``PROMOTE_ABOVE T`` becomes +-1, when that lowers
+    ``error + RDOQ_LAMBDA T**2 bits``. The bits come from a first coding pass: a coefficient's
+    ideal code length prices its own choice, and the probability of significance its context
+    had (``2**-bits`` for a zero, about ``2**(1.5 - bits)`` for a +-1) prices the other one.
+
+    Parameters
+    ----------
+    values : ndarray of float, shape (H, W)
+        The coefficients quantized.
+    q : ndarray of int32, shape (H, W)
+        Their bin indices; modified.
+    bits : ndarray of float, shape (H, W)
+        Ideal code length of each coefficient in the first pass; 0 where not to be touched.
+    threshold : float
+    """
+    price = RDOQ_LAMBDA * threshold * threshold
+    a = np.abs(values)
+    # Error removed by coding +-1 instead of 0.
+    gain = a * a - (a - (1.0 + RECONSTRUCTION) * threshold) ** 2
+    ones = (np.abs(q) == 1) & (bits > 0)
+    significant = np.clip(2.0 ** (_SIGN_AND_MAGNITUDE_BITS - bits[ones]), 0.0, 0.5)
+    saved = bits[ones] + np.log2(1.0 - significant)
+    drop = np.zeros(q.shape, bool)
+    drop[ones] = gain[ones] < price * saved
+    zeros = (q == 0) & (bits > 0) & (a > PROMOTE_ABOVE * threshold)
+    significant = np.clip(1.0 - 2.0 ** -bits[zeros], 1e-6, 1.0)
+    extra = _SIGN_AND_MAGNITUDE_BITS - np.log2(significant) - bits[zeros]
+    promote = np.zeros(q.shape, bool)
+    promote[zeros] = gain[zeros] > price * extra
+    q[drop] = 0
+    q[promote] = np.sign(values[promote]).astype(q.dtype)
 
 
 def wavelet_coefficients(x: np.ndarray, wavelet: str, levels: int) -> list[np.ndarray]:
