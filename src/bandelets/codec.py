@@ -506,7 +506,8 @@ def encode(
     kind : {"image", "normal-map", "geometry-image"}
         A normal map is renormalised to unit vectors before coding and after decoding.
     wavelet : str
-        See :data:`bandelets.wavelets.WAVELETS`.
+        See :data:`bandelets.wavelets.WAVELETS`, or ``"auto"``: encode with each of
+        :data:`AUTO_CANDIDATES` and keep the better file (twice the time).
     transform_1d : {"alpert2", "haar"}
         1D transform along the directions.
     depth : {0, 8, 16}
@@ -550,6 +551,19 @@ def encode_with_stats(
     max_memory=MAX_MEMORY,
 ) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
+    if wavelet == AUTO_WAVELET:
+        return _best_of_wavelets(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            transform=transform,
+            kind=kind,
+            transform_1d=transform_1d,
+            depth=depth,
+            progress=progress,
+            max_memory=max_memory,
+        )
     x = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
@@ -598,3 +612,40 @@ def encode_with_stats(
         return metrics.psnr(reference, decoded, kind)
 
     return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, t_guess, progress)
+
+
+#: The ``wavelet`` that lets the encoder choose, per image and target, among
+#: :data:`AUTO_CANDIDATES`.
+AUTO_WAVELET = "auto"
+#: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD
+#: normal map) once the rate is high enough to code the creases exactly.
+AUTO_CANDIDATES = ("cdf97", "haar")
+
+
+def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **options) -> Encoded:
+    """Encode with each wavelet of :data:`AUTO_CANDIDATES` and keep the best file.
+
+    For a rate target, the one whose decoded image has the higher PSNR; for a quality target
+    the smaller file; at a fixed threshold the smaller ``error + LAMBDA T**2 bits``.
+    """
+    files = [
+        encode_with_stats(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            kind=kind,
+            wavelet=w,
+            max_memory=max_memory,
+            **options,
+        )
+        for w in AUTO_CANDIDATES
+    ]
+    if psnr is not None:
+        return min(files, key=lambda f: len(f.data))
+    if threshold is not None:
+        return min(files, key=lambda f: f.coefficient_sse + LAMBDA * f.threshold**2 * 8 * len(f.data))
+    x = check_image(array, kind, max_memory)
+    reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
+    limits = dict(max_memory=max_memory, max_side=2**32, max_samples=2**64)
+    return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))
