@@ -572,6 +572,9 @@ def encode_with_stats(
         raise ValueError("give exactly one of bpp, threshold or psnr")
     if depth not in (0, 8, 16):
         raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
+    if wavelet not in WAVELETS:
+        choices = ", ".join((*WAVELETS, AUTO_WAVELET))
+        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {choices}")
     _check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
