@@ -6,7 +6,7 @@ but measure the real file size, decode, and print bpp and PSNR, then the BD-PSNR
 bandelet variant over the wavelet baseline. Then the median encode time at a fixed
 threshold and the median decode time for the default codec.
 
-    python benchmarks/bandelet_gain.py [--size 512] [--rates 0.25,0.5,1,2] [--repeat 3]
+    python benchmarks/bandelet_gain.py [--size 512] [--rates 0.25,0.5,1,2] [--repeat 3] [--wavelet auto]
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--rates", default="0.25,0.5,1,2")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--wavelet", default="cdf97", help="cdf97 (default), haar, ... or auto")
     args = parser.parse_args()
     normals = crease_normal_map(args.size)
     rates = [float(r) for r in args.rates.split(",")]
@@ -40,7 +41,7 @@ def main() -> None:
     for name, options in VARIANTS.items():
         points = []
         for rate in rates:
-            data = bandelets.encode(normals, bpp=rate, kind="normal-map", **options)
+            data = bandelets.encode(normals, bpp=rate, kind="normal-map", wavelet=args.wavelet, **options)
             quality = psnr(normals, bandelets.decode(data), "normal-map")
             points.append((bits_per_pixel(len(data), normals.shape), quality))
             print(f"{name:<17} {rate:>6g} {len(data):>7d} {points[-1][0]:>7.4f} {quality:>7.2f}")

@@ -27,14 +27,14 @@ from bandelets.wavelets import max_levels, subband_slices
 
 def collect(size: int, transform_1d: str, thresholds: list[float]):
     """Rows (significance, significant, sum log2 m, actual bits) for wavelet / bandelet squares."""
-    image = crease_normal_map(size)
+    image = crease_normal_map(size)[..., :2]  # z >= 0: the codec codes x and y only
     levels = max_levels(image.shape[:2])
     coefficients = codec.wavelet_coefficients(image, "cdf97", levels)
     k = 2 if transform_1d == "alpert2" else 1
     rows = {"wavelet": [], "bandelet": []}
     for t in thresholds:
         for transform in ("wavelet", "bandelet"):
-            header = Header(size, size, 3, "normal-map", transform, "cdf97", levels, t, 0, transform_1d)
+            header = Header(size, size, 2, "normal-map", transform, "cdf97", levels, t, 0, transform_1d)
             trees = codec._best_trees(coefficients, levels, t, transform, transform_1d)
             bands = [
                 codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients

@@ -181,11 +181,12 @@ def test_bit_flips_in_the_streams_behind_a_valid_crc(small_file, normal_file, wh
     assert True in outcomes  # most flips still decode, to something else
 
 
-@pytest.mark.parametrize("channels", [1, 2])
-def test_normal_map_label_on_a_file_without_3_channels_is_a_format_error(channels):
-    # A valid 1- or 2-channel image file whose kind byte says normal-map (valid CRC).
+@pytest.mark.parametrize(("kind", "channels"), [(1, 1), (1, 4), (2, 2)])
+def test_vector_label_on_a_file_of_the_wrong_channel_count_is_a_format_error(kind, channels):
+    # A valid image file whose kind byte says normal-map or geometry-image (valid CRC): a
+    # normal map has 3 channels or 2 (z rebuilt), a geometry image 3.
     x = np.random.default_rng(5).random((16, 16, channels))
-    bad = _patched(bandelets.encode(x, threshold=0.1), 5, "<B", 1)
+    bad = _patched(bandelets.encode(x, threshold=0.1), 5, "<B", kind)
     with pytest.raises(FormatError):
         bandelets.decode(bad)
 

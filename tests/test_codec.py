@@ -195,6 +195,51 @@ def test_normal_map_decodes_unit_vectors(crease_map):
     assert metrics.psnr(x, y, "normal-map") > 30
 
 
+def test_normal_map_facing_up_is_coded_as_two_channels(crease_map):
+    # Every z >= 0: only x and y are coded, z is rebuilt; the file is smaller than three
+    # channels at the same threshold (the same map with one vector flipped below the plane).
+    data = bandelets.encode(crease_map, threshold=0.01, kind="normal-map")
+    assert unpack(data)[0].channels == 2
+    y = bandelets.decode(data)
+    assert y.shape == crease_map.shape
+    assert np.all(y[..., 2] >= 0)
+    assert metrics.psnr(crease_map, y, "normal-map") > 40
+    flipped = crease_map.copy()
+    flipped[0, 0, 2] = -flipped[0, 0, 2]
+    three = bandelets.encode(flipped, threshold=0.01, kind="normal-map")
+    assert unpack(three)[0].channels == 3
+    assert len(data) < 0.85 * len(three)
+    assert bandelets.decode(three)[0, 0, 2] < 0
+
+
+def test_rebuilt_z_is_zero_outside_the_unit_disc():
+    xy = np.array([[[0.6, 0.0], [0.9, 0.6]]])
+    np.testing.assert_allclose(codec._rebuilt_z(xy)[..., 0], [[0.8, 0.0]])
+
+
+def test_auto_wavelet_keeps_the_better_file(crease_map):
+    # The choice does not depend on the transform: wavelets keep the test fast.
+    options = dict(kind="normal-map", transform="wavelet")
+    # At a rate target: the file of the candidate whose decoded map has the higher PSNR.
+    files = {w: bandelets.encode(crease_map, bpp=2, wavelet=w, **options) for w in codec.AUTO_CANDIDATES}
+    quality = {w: metrics.psnr(crease_map, bandelets.decode(d), "normal-map") for w, d in files.items()}
+    best = max(quality, key=quality.get)
+    auto = bandelets.encode(crease_map, bpp=2, wavelet="auto", **options)
+    assert auto == files[best]
+    assert unpack(auto)[0].wavelet == best
+    # At a fixed threshold: the smaller error + LAMBDA T**2 bits.
+    t = 0.02
+    stats = [
+        codec.encode_with_stats(crease_map, threshold=t, wavelet=w, **options) for w in codec.AUTO_CANDIDATES
+    ]
+    cost = [s.coefficient_sse + codec.LAMBDA * t * t * 8 * len(s.data) for s in stats]
+    chosen = stats[int(np.argmin(cost))].data
+    assert bandelets.encode(crease_map, threshold=t, wavelet="auto", **options) == chosen
+    # At a quality target: the smaller file.
+    files = [bandelets.encode(crease_map, psnr=50, wavelet=w, **options) for w in codec.AUTO_CANDIDATES]
+    assert bandelets.encode(crease_map, psnr=50, wavelet="auto", **options) == min(files, key=len)
+
+
 def test_normal_map_of_zero_vectors_decodes_to_plus_z():
     x = np.zeros((16, 16, 3))
     y = bandelets.decode(bandelets.encode(x, threshold=0.1, kind="normal-map"))

@@ -18,11 +18,17 @@ def test_reconstruction_point_is_inside_the_bin():
     assert 0.0 < R < 1.0
 
 
-def test_reconstruction_is_the_middle_of_the_bin_as_in_the_paper():
+def test_reconstruction_is_the_reconstruction_point_of_the_bin():
     t = 0.3
     x = np.array([0.31, 0.59, 0.61, -0.95, 3.0 * 7.3])
     q = np.array([1, 1, 2, -3, 73])
-    np.testing.assert_allclose(q_t(x, t), np.sign(q) * (np.abs(q) + 0.5) * t, rtol=1e-12)
+    np.testing.assert_allclose(q_t(x, t), np.sign(q) * (np.abs(q) + R) * t, rtol=1e-12)
+
+
+def test_reconstruction_is_biased_towards_zero_as_coefficients_are():
+    # Wavelet and bandelet coefficients fall off with magnitude inside a bin: the centroid
+    # of their bins is below the middle (0.42 to 0.47 on the generated normal maps).
+    assert 0.4 <= R < 0.5
 
 
 def q_t(x, t):

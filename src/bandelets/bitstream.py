@@ -9,7 +9,7 @@ Layout (little endian)::
     6       1     transform: 0 bandelet, 1 wavelet
     7       1     wavelet: index into bandelets.wavelets.WAVELETS
     8       1     wavelet levels
-    9       1     channels (1 to 4)
+    9       1     channels coded (1 to 4; a normal map: 3, or 2 when z is rebuilt, see below)
     10      1     source sample depth: 0 float, 8 or 16 (PNG bits, for decoding back to PNG)
     11      1     1D transform along the directions: 0 haar, 1 alpert2
     12      4     height
@@ -18,6 +18,10 @@ Layout (little endian)::
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      ...   the three streams
     end-4   4     CRC32 of everything before it
+
+A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
+coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
+(format version 2; version 1 always coded three channels).
 
 Every field is validated before anything is allocated; :class:`FormatError` (a ``ValueError``)
 names what is wrong. Beyond the size limits, :func:`check_memory` refuses a file whose decoding
@@ -54,7 +58,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
 #: Largest side and sample count a decoder accepts by default.
@@ -189,7 +193,11 @@ def unpack(
     lengths = fields[12:]
     checks = [
         (kind < len(KINDS), f"unknown kind code {kind}"),
-        (kind == 0 or channels == 3, f"a {KINDS[min(kind, 2)]} needs 3 channels, the file has {channels}"),
+        (
+            kind == 0 or channels == 3 or (kind == 1 and channels == 2),
+            f"a {KINDS[min(kind, 2)]} needs 3 channels{' (or 2)' if kind == 1 else ''}, "
+            f"the file has {channels}",
+        ),
         (transform < len(TRANSFORMS), f"unknown transform code {transform}"),
         (wavelet < len(WAVELETS), f"unknown wavelet code {wavelet}"),
         (1 <= channels <= 4, f"bad channel count {channels}"),

@@ -56,7 +56,12 @@ def _build_parser() -> argparse.ArgumentParser:
         default="image",
         help="image (default), normal-map (RGB vectors, renormalised) or geometry-image",
     )
-    p.add_argument("--wavelet", default="cdf97", help="cdf97 (default), haar, db2, db4, db6 or db8")
+    p.add_argument(
+        "--wavelet",
+        default="cdf97",
+        help="cdf97 (default), haar, db2, db4, db6, db8, or auto (the better of cdf97 and haar, in twice "
+        "the time)",
+    )
     p.add_argument(
         "--transform-1d",
         choices=("alpert2", "haar"),

@@ -31,7 +31,7 @@ from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
-from .quantize import MAX_INDEX, dequantize, quantize
+from .quantize import MAX_INDEX, RECONSTRUCTION, dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
@@ -216,7 +216,9 @@ def code_image(
     Order: the approximation of every channel, then subband by subband (coarse to fine,
     H, V, D): its quadtree and directions (:mod:`bandelets.treecoding`), then for each
     channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.layout`).
-    After a channel's bandelet squares, the contexts are given the wavelet coefficients those
+    The guide of a channel (a context, see :func:`bandelets.entropy.code_coefficients`) is
+    what the previous channel coded, bandelet coefficients included. After a channel's
+    bandelet squares, the contexts are given the wavelet coefficients those
     squares decode to.
 
     Returns
@@ -234,7 +236,7 @@ def code_image(
     known = [np.zeros(size, np.int64) for _ in quantized]
     spent = [np.zeros(size) for _ in quantized]
     approximation = approximation_plan(shape, header.levels)
-    guides = [np.zeros(0, np.int64)] + known[:-1]
+    guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
         entropy.code_coefficients(coeffs, q, approximation, known[c], guides[c], spent[c])
     out = []
@@ -338,6 +340,13 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
         _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients
     ]
     quantized = [quantize(b, threshold) for b in bandelets]
+    # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
+    # its context, then the bins between 0 and +-1 are chosen again and the image coded again.
+    _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
+    approximation = approximation_plan(bandelets[0].shape, header.levels).order
+    for b, q, bits in zip(bandelets, quantized, spent, strict=True):
+        bits[approximation] = 0.0  # coded as a prediction residual: left alone
+        _optimise_bins(b, q, bits.reshape(q.shape), threshold)
     sse = sum(
         float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True)
     )
@@ -345,6 +354,51 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse)
+
+
+#: Lagrange multiplier of the quantization decisions, in T**2 per bit (the search's LAMBDA).
+RDOQ_LAMBDA = LAMBDA
+#: Dead-zone values above this many T may be coded as +-1 (the quantizer's dead zone is T).
+PROMOTE_ABOVE = 0.7
+#: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
+_SIGN_AND_MAGNITUDE_BITS = 1.5
+
+
+def _optimise_bins(values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshold: float) -> None:
+    """Rate-distortion optimised quantization between 0 and +-1, in place.
+
+    ``Q_T`` decides on magnitude alone; here a coefficient of bin 1 becomes 0, or a value of
+    the dead zone above ``PROMOTE_ABOVE T`` becomes +-1, when that lowers
+    ``error + RDOQ_LAMBDA T**2 bits``. The bits come from a first coding pass: a coefficient's
+    ideal code length prices its own choice, and the probability of significance its context
+    had (``2**-bits`` for a zero, about ``2**(1.5 - bits)`` for a +-1) prices the other one.
+
+    Parameters
+    ----------
+    values : ndarray of float, shape (H, W)
+        The coefficients quantized.
+    q : ndarray of int32, shape (H, W)
+        Their bin indices; modified.
+    bits : ndarray of float, shape (H, W)
+        Ideal code length of each coefficient in the first pass; 0 where not to be touched.
+    threshold : float
+    """
+    price = RDOQ_LAMBDA * threshold * threshold
+    a = np.abs(values)
+    # Error removed by coding +-1 instead of 0.
+    gain = a * a - (a - (1.0 + RECONSTRUCTION) * threshold) ** 2
+    ones = (np.abs(q) == 1) & (bits > 0)
+    significant = np.clip(2.0 ** (_SIGN_AND_MAGNITUDE_BITS - bits[ones]), 0.0, 0.5)
+    saved = bits[ones] + np.log2(1.0 - significant)
+    drop = np.zeros(q.shape, bool)
+    drop[ones] = gain[ones] < price * saved
+    zeros = (q == 0) & (bits > 0) & (a > PROMOTE_ABOVE * threshold)
+    significant = np.clip(1.0 - 2.0 ** -bits[zeros], 1e-6, 1.0)
+    extra = _SIGN_AND_MAGNITUDE_BITS - np.log2(significant) - bits[zeros]
+    promote = np.zeros(q.shape, bool)
+    promote[zeros] = gain[zeros] > price * extra
+    q[drop] = 0
+    q[promote] = np.sign(values[promote]).astype(q.dtype)
 
 
 def wavelet_coefficients(x: np.ndarray, wavelet: str, levels: int) -> list[np.ndarray]:
@@ -410,8 +464,16 @@ def decode_parsed(
     if not np.all(np.isfinite(out)):
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
+        if header.channels == 2:
+            out = np.concatenate([out, _rebuilt_z(out)], axis=-1)
         out = metrics.unit_vectors(out)
     return out[..., 0] if header.channels == 1 else out
+
+
+def _rebuilt_z(xy: np.ndarray) -> np.ndarray:
+    """``z = sqrt(1 - x^2 - y^2)`` (0 where the decoded ``x, y`` lie outside the unit disc), shape
+    (H, W, 1), of decoded normals ``xy`` of shape (H, W, 2)."""
+    return np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))
 
 
 def encode(
@@ -434,6 +496,8 @@ def encode(
     ----------
     array : array_like, shape (H, W) or (H, W, C), C <= 4
         Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
+        A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
+        rebuilds ``z``); otherwise as three channels.
     bpp, threshold, psnr : float, exactly one
         Target rate in bits per pixel (the file lands within 3 % below it), quantization
         threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
@@ -442,7 +506,8 @@ def encode(
     kind : {"image", "normal-map", "geometry-image"}
         A normal map is renormalised to unit vectors before coding and after decoding.
     wavelet : str
-        See :data:`bandelets.wavelets.WAVELETS`.
+        See :data:`bandelets.wavelets.WAVELETS`, or ``"auto"``: encode with each of
+        :data:`AUTO_CANDIDATES` and keep the better file (twice the time).
     transform_1d : {"alpert2", "haar"}
         1D transform along the directions.
     depth : {0, 8, 16}
@@ -486,6 +551,19 @@ def encode_with_stats(
     max_memory=MAX_MEMORY,
 ) -> Encoded:
     """:func:`encode`, returning also the threshold used and the predicted error."""
+    if wavelet == AUTO_WAVELET:
+        return _best_of_wavelets(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            transform=transform,
+            kind=kind,
+            transform_1d=transform_1d,
+            depth=depth,
+            progress=progress,
+            max_memory=max_memory,
+        )
     x = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
@@ -494,13 +572,18 @@ def encode_with_stats(
         raise ValueError("give exactly one of bpp, threshold or psnr")
     if depth not in (0, 8, 16):
         raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
+    if wavelet not in WAVELETS:
+        choices = ", ".join((*WAVELETS, AUTO_WAVELET))
+        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {choices}")
     _check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
-    coefficients = wavelet_coefficients(x, wavelet, levels)
+    # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
+    coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
+    coefficients = wavelet_coefficients(coded, wavelet, levels)
 
     def encode_at(t: float) -> Encoded:
         header = Header(
-            x.shape[0], x.shape[1], x.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
+            x.shape[0], x.shape[1], coded.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
         )
         return encode_at_threshold(coefficients, header)
 
@@ -532,3 +615,40 @@ def encode_with_stats(
         return metrics.psnr(reference, decoded, kind)
 
     return ratecontrol.for_quality(encode_at, quality, float(psnr), t_max, t_guess, progress)
+
+
+#: The ``wavelet`` that lets the encoder choose, per image and target, among
+#: :data:`AUTO_CANDIDATES`.
+AUTO_WAVELET = "auto"
+#: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD
+#: normal map) once the rate is high enough to code the creases exactly.
+AUTO_CANDIDATES = ("cdf97", "haar")
+
+
+def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **options) -> Encoded:
+    """Encode with each wavelet of :data:`AUTO_CANDIDATES` and keep the best file.
+
+    For a rate target, the one whose decoded image has the higher PSNR; for a quality target
+    the smaller file; at a fixed threshold the smaller ``error + LAMBDA T**2 bits``.
+    """
+    files = [
+        encode_with_stats(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            kind=kind,
+            wavelet=w,
+            max_memory=max_memory,
+            **options,
+        )
+        for w in AUTO_CANDIDATES
+    ]
+    if psnr is not None:
+        return min(files, key=lambda f: len(f.data))
+    if threshold is not None:
+        return min(files, key=lambda f: f.coefficient_sse + LAMBDA * f.threshold**2 * 8 * len(f.data))
+    x = check_image(array, kind, max_memory)
+    reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
+    limits = dict(max_memory=max_memory, max_side=2**32, max_samples=2**64)
+    return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))

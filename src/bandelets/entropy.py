@@ -412,10 +412,10 @@ def code_coefficients(
         Coding order, context class and neighbour positions of the coefficients.
     known : ndarray of int64, shape (H * W,)
         What the context models see: the values coded so far (zeros elsewhere). Updated.
-    guide : ndarray of int64, shape (H * W,) or (0,)
-        ``known`` of the previous channel, whose magnitude at the same position is a context
-        (the channels of a normal map or a geometry image change at the same places); empty
-        for the first channel.
+    guide : ndarray of int, shape (H * W,) or (0,)
+        What the previous channel coded (bandelet coefficients in its bandelet squares), whose
+        magnitude at the same position is a context (the channels of a normal map or a
+        geometry image change at the same places); empty for the first channel.
     spent : ndarray of float64, shape (H * W,)
         Receives the ideal code length of each coefficient coded, in bits (what the rate
         model of :mod:`bandelets.lagrangian` is fitted to).

@@ -1,8 +1,11 @@
 """The paper's nearly uniform quantizer Q_T (section 4, step (8)).
 
 ``Q_T(x) = 0`` if ``|x| <= T``, else ``sign(x) (q + 1/2) T`` for ``q T <= |x| < (q + 1) T``:
-a dead zone of width ``2T`` and bins of width ``T`` reconstructed at their middle. The
-integer that is entropy-coded is the signed bin index ``sign(x) q`` (0 in the dead zone).
+a dead zone of width ``2T`` and bins of width ``T`` reconstructed at their middle. Here the
+reconstruction point is :data:`RECONSTRUCTION` (a little below the middle), and the encoder
+may move a value between 0 and +-1 (rate-distortion optimised quantization, in
+:mod:`bandelets.codec`). The integer that is entropy-coded is the signed bin index
+``sign(x) q`` (0 in the dead zone).
 """
 
 from __future__ import annotations
@@ -14,8 +17,10 @@ __all__ = ["quantize", "dequantize", "bin_index", "quantization_error"]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
-#: Where inside its bin a value is reconstructed: ``(q + RECONSTRUCTION) T``.
-RECONSTRUCTION = 0.5
+#: Where inside its bin a value is reconstructed: ``(q + RECONSTRUCTION) T``. The paper takes
+#: the middle (1/2); the coefficients inside a bin decrease with magnitude, and their mean
+#: sits at 0.42 to 0.47 of the bin on the generated normal maps (0.44: +0.06 dB BD-PSNR).
+RECONSTRUCTION = 0.44
 
 
 def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
@@ -38,7 +43,7 @@ def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
-    """Reconstruction ``sign(q) (|q| + 1/2) T`` of signed bin indices (0 stays 0)."""
+    """Reconstruction ``sign(q) (|q| + RECONSTRUCTION) T`` of signed bin indices (0 stays 0)."""
     q = q.astype(np.float64)
     return np.sign(q) * (np.abs(q) + RECONSTRUCTION) * threshold
 

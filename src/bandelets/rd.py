@@ -94,7 +94,10 @@ def _encode(source: Source, codec: str, rate: float) -> bytes:
         return anchors.encode(source.array, rate, codec, source.kind, source.depth)
     from .codec import encode
 
-    return encode(source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth)
+    # The encoder picks the better of CDF 9/7 and Haar for each point (codec.AUTO_CANDIDATES).
+    return encode(
+        source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth, wavelet="auto"
+    )
 
 
 def _decode(source: Source, codec: str, data: bytes) -> np.ndarray:
