@@ -57,7 +57,7 @@ def test_rd_on_a_mesh_with_draco_writes_csv_png_and_real_bytes(tmp_path, capsys,
     assert draco[1] > draco[0]  # more bytes, more bits per coordinate
     assert imagecodecs.png_decode((out / "rd.png").read_bytes()).ndim == 3
     assert "draco: DracoPy " in printed and "Draco bitstream" in printed and "bpv range" in printed
-    assert "32 x 32 geometry image" in printed
+    assert "32 x 32 geometry image" in printed and "dB against the original before coding" in printed
 
 
 def test_draco_file_decodes_to_the_mesh_it_wrote(sphere_file):
