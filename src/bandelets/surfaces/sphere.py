@@ -41,7 +41,7 @@ __all__ = ["SphereMap", "area_distortion", "flipped", "spherical_parameterizatio
 _WEIGHT_FLOOR = 1e-3  # cotangent weights below this fraction of the median are raised to it
 _PUNCTURE_INRADIUS = 10.0  # the pinned triangle's size in the plane: its outside is a small polar cap
 _WINDOW = 10  # the relaxation stops when its last this many steps gained too little
-_WORK = 1.5e7  # default most relaxation steps times vertices: about 30 s on a 2-core machine
+_WORK = 1.5e7  # default most relaxation steps times vertices: about 20 s on the 2-core machine
 
 
 @dataclass(frozen=True)
