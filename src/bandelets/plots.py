@@ -16,6 +16,7 @@ _STYLE = {
     "jpeg2000": ("tab:blue", "^", "-."),
     "avif": ("tab:green", "D", ":"),
     "jpegxl": ("tab:purple", "v", (0, (3, 1, 1, 1))),
+    "draco": ("tab:brown", "P", "-."),
 }
 
 
@@ -27,18 +28,22 @@ def save(figure, path: Path, dpi: int = 100) -> None:
 
 
 def rd_figure(rows: list[dict], path: Path) -> None:
-    """Plot PSNR (dB) against bits per pixel for every codec, one panel per input.
+    """Plot PSNR (dB) against bits per pixel (or per vertex) for every codec, one panel per input.
 
     Parameters
     ----------
     rows : list of dict
-        Points with keys ``input, codec, bpp, psnr`` (as :func:`bandelets.rd.run` returns).
+        Points with keys ``input, codec, bpp, psnr`` (as :func:`bandelets.rd.run` returns),
+        ``bpv`` instead of ``bpp`` for meshes.
     path : Path
         The PNG to write.
     """
     from matplotlib.figure import Figure
     from matplotlib.ticker import FormatStrFormatter
 
+    from .rd import rate_key
+
+    rate = rate_key(rows)
     inputs = list(dict.fromkeys(r["input"] for r in rows)) or ["(no points)"]
     columns = min(3, len(inputs))
     lines = -(-len(inputs) // columns)
@@ -47,13 +52,13 @@ def rd_figure(rows: list[dict], path: Path) -> None:
     for ax, name in zip(axes, inputs, strict=False):
         curves = [r for r in rows if r["input"] == name]
         for codec in dict.fromkeys(r["codec"] for r in curves):
-            points = sorted((r["bpp"], r["psnr"]) for r in curves if r["codec"] == codec)
+            points = sorted((r[rate], r["psnr"]) for r in curves if r["codec"] == codec)
             colour, marker, style = _STYLE.get(codec, ("black", "x", "-"))
             ax.plot(*zip(*points, strict=True), color=colour, marker=marker, linestyle=style, label=codec)
         ax.set_xscale("log", base=2)
         ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
         ax.set_title(name)
-        ax.set_xlabel("bits per pixel (file size)")
+        ax.set_xlabel("bits per vertex (file size)" if rate == "bpv" else "bits per pixel (file size)")
         ax.set_ylabel("PSNR (dB)")
         ax.grid(True, which="both", alpha=0.3)
         if curves:

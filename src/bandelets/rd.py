@@ -5,6 +5,12 @@ back and decoded, ``bpp = 8 * bytes / (H * W)`` and the PSNR (:func:`bandelets.m
 for the input's kind) is measured on what was decoded. The curves are compared by their
 BD-PSNR against bandelets, and ``--decay`` fits the slope of ``log MSE`` against
 ``log bits``, the exponent of the paper's decay theorems.
+
+A mesh input (OBJ, PLY, OFF, STL, ...) is compared at equal file size too, with the rate in
+bits per vertex of the original mesh (``bpv = 8 * bytes / V``) and the Hausdorff PSNR
+(:func:`bandelets.surfaces.metrics.hausdorff_psnr`) of each decoded mesh against the
+original: bandelets and wavelets code its spherical geometry image (made once per mesh; its
+time is not in ``encode_s``), Draco (:mod:`bandelets.surfaces.draco`) the mesh itself.
 """
 
 from __future__ import annotations
@@ -25,18 +31,29 @@ from .metrics import bd_psnr, bits_per_pixel, psnr
 
 __all__ = [
     "CODECS",
+    "MESH_CODECS",
+    "MESH_SUFFIXES",
     "SAMPLES",
+    "MeshSource",
     "Source",
+    "check_codecs",
     "decay_slopes",
     "format_points",
     "format_summary",
     "gains",
     "load",
+    "rate_key",
     "run",
 ]
 
 #: Codecs ``rd`` knows: the bandelet codec, the same codec without geometry, the anchors.
 CODECS = ("bandelet", "wavelet", *anchors.ANCHORS)
+
+#: Codecs of mesh inputs: bandelets and wavelets on the geometry image, Draco on the mesh.
+MESH_CODECS = ("bandelet", "wavelet", "draco")
+
+#: File suffixes read as meshes (through trimesh).
+MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 
 #: Generated inputs, ``sample:NAME[@SIZE]``: the generator of each and the kind it is.
 SAMPLES = {
@@ -50,6 +67,7 @@ SAMPLES = {
 SAMPLE_SIZE = 256
 
 _COLUMNS = ("input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s")
+_MESH_COLUMNS = tuple("bpv" if c == "bpp" else c for c in _COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -62,14 +80,37 @@ class Source:
     depth: int = 0
 
 
-def load(spec: str, kind: str = "image") -> Source:
-    """Read a PNG / .npy path, or generate ``sample:NAME[@SIZE]`` (which has its own kind).
+@dataclass(frozen=True)
+class MeshSource:
+    """A mesh input: its label, the mesh, its geometry image and the seconds that took."""
+
+    name: str
+    mesh: object  # trimesh.Trimesh
+    image: np.ndarray
+    image_s: float
+
+
+def load(spec: str, kind: str = "image", size: int = 256) -> Source | MeshSource:
+    """Read a PNG / .npy path or a mesh, or generate ``sample:NAME[@SIZE]`` (which has its own kind).
+
+    A mesh (a path ending in one of :data:`MESH_SUFFIXES`) is checked, parameterized and
+    sampled on a ``size`` x ``size`` geometry image here, once for all its points.
 
     Raises
     ------
     ValueError
         Unknown sample, bad size, an unreadable file or one the codec cannot take.
     """
+    if Path(spec).suffix.lower() in MESH_SUFFIXES:
+        from .surfaces.codec import load_mesh, make_geometry_image
+
+        mesh = load_mesh(spec)
+        start = time.perf_counter()
+        try:
+            image = make_geometry_image(mesh, size).positions
+        except ValueError as err:
+            raise ValueError(f"{spec}: {err}") from None
+        return MeshSource(Path(spec).stem, mesh, image, time.perf_counter() - start)
     if not spec.startswith("sample:"):
         from .codec import check_image
 
@@ -108,48 +149,100 @@ def _decode(source: Source, codec: str, data: bytes) -> np.ndarray:
     return decode(data)
 
 
-def _point(source: Source, codec: str, rate: float, folder: Path) -> dict:
+def _encode_mesh(source: MeshSource, codec: str, rate: float) -> bytes:
+    if codec == "draco":
+        from .surfaces import draco
+
+        return draco.encode(source.mesh, rate * len(source.mesh.vertices) / 8)
+    from .surfaces.codec import encode_mesh
+
+    return encode_mesh(source.mesh, image=source.image, bits_per_vertex=rate, transform=codec)
+
+
+def _decode_mesh(codec: str, data: bytes):
+    if codec == "draco":
+        from .surfaces import draco
+
+        return draco.decode(data)
+    from .surfaces.codec import decode_mesh
+
+    return decode_mesh(data)
+
+
+def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -> dict:
     """Encode, write, read back, decode and measure one point."""
+    meshes = isinstance(source, MeshSource)
     start = time.perf_counter()
-    data = _encode(source, codec, rate)
+    data = _encode_mesh(source, codec, rate) if meshes else _encode(source, codec, rate)
     encode_s = time.perf_counter() - start
-    path = folder / f"{codec}-{rate:g}bpp.{anchors.EXTENSIONS.get(codec, 'bdl')}"
+    unit = "bpv" if meshes else "bpp"
+    extension = "drc" if codec == "draco" else anchors.EXTENSIONS.get(codec, "bdl")
+    path = folder / f"{codec}-{rate:g}{unit}.{extension}"
     write_atomic(path, data)
     written = path.read_bytes()
     start = time.perf_counter()
-    decoded = _decode(source, codec, written)
+    decoded = _decode_mesh(codec, written) if meshes else _decode(source, codec, written)
     decode_s = time.perf_counter() - start
+    if meshes:
+        from .surfaces.metrics import hausdorff_psnr
+
+        rate_value = 8 * len(written) / len(source.mesh.vertices)
+        quality = hausdorff_psnr(source.mesh, decoded)
+    else:
+        rate_value = bits_per_pixel(len(written), source.array.shape)
+        quality = psnr(source.array, decoded, source.kind)
     return {
         "input": source.name,
         "codec": codec,
         "target": rate,
         "bytes": len(written),
-        "bpp": bits_per_pixel(len(written), source.array.shape),
-        "psnr": psnr(source.array, decoded, source.kind),
+        unit: rate_value,
+        "psnr": quality,
         "encode_s": encode_s,
         "decode_s": decode_s,
     }
 
 
+def check_codecs(codecs: list[str], meshes: bool = False) -> None:
+    """Raise ``ValueError`` unless every codec is known for the inputs and installed."""
+    known = MESH_CODECS if meshes else CODECS
+    unknown = [c for c in codecs if c not in known]
+    if unknown:
+        inputs = "meshes" if meshes else "images"
+        raise ValueError(f"unknown codec {unknown[0]!r} for {inputs}; choose from {', '.join(known)}")
+    missing = [c for c in codecs if c in anchors.ANCHORS and not anchors.available(c)]
+    if missing:
+        raise ValueError(f"imagecodecs was built without {missing[0]}")
+    if "draco" in codecs:
+        from .surfaces import draco
+
+        if not draco.available():
+            raise ValueError("the draco codec needs DracoPy (pip install DracoPy)")
+
+
 def run(
-    sources: list[Source], rates: list[float], codecs: list[str], out: Path, progress: bool = False
+    sources: list[Source | MeshSource],
+    rates: list[float],
+    codecs: list[str],
+    out: Path,
+    progress: bool = False,
 ) -> list[dict]:
     """Measure every codec at every rate on every source.
 
     Writes the files under ``out/INPUT/``, then ``out/rd.csv`` and ``out/rd.png``. A point
     a codec cannot reach (a target below its smallest file) is skipped with a warning.
+    The sources are all images (rates in bits per pixel) or all meshes (bits per vertex).
 
     Returns
     -------
     list of dict
         One row per point, with the keys of the CSV columns.
     """
-    unknown = [c for c in codecs if c not in CODECS]
-    if unknown:
-        raise ValueError(f"unknown codec {unknown[0]!r}; choose from {', '.join(CODECS)}")
-    missing = [c for c in codecs if c in anchors.ANCHORS and not anchors.available(c)]
-    if missing:
-        raise ValueError(f"imagecodecs was built without {missing[0]}")
+    meshes = [isinstance(s, MeshSource) for s in sources]
+    if any(meshes) and not all(meshes):
+        raise ValueError("give either images or meshes, not both")
+    check_codecs(codecs, any(meshes))
+    unit = "bpv" if any(meshes) else "bpp"
     if not rates or any(not (np.isfinite(r) and r > 0) for r in rates):
         raise ValueError("rates must be positive numbers")
     names = [s.name for s in sources]
@@ -163,26 +256,32 @@ def run(
         try:
             rows.append(_point(source, codec, rate, out / source.name))
         except ValueError as err:
-            warnings.warn(f"{source.name}: {codec} at {rate:g} bpp skipped: {err}", stacklevel=2)
-    _write_csv(rows, out / "rd.csv")
+            warnings.warn(f"{source.name}: {codec} at {rate:g} {unit} skipped: {err}", stacklevel=2)
+    _write_csv(rows, out / "rd.csv", _MESH_COLUMNS if any(meshes) else _COLUMNS)
     from .plots import rd_figure
 
     rd_figure(rows, out / "rd.png")
     return rows
 
 
-def _write_csv(rows: list[dict], path: Path) -> None:
+def _write_csv(rows: list[dict], path: Path, columns: tuple[str, ...]) -> None:
     text = io.StringIO()
-    writer = csv.DictWriter(text, _COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(text, columns, lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: f"{v:.6g}" if isinstance(v, float) else v for k, v in row.items()})
     write_atomic(path, text.getvalue().encode())
 
 
+def rate_key(rows: list[dict]) -> str:
+    """The rate of the rows: ``"bpv"`` (bits per vertex) for meshes, else ``"bpp"``."""
+    return "bpv" if rows and "bpv" in rows[0] else "bpp"
+
+
 def _curve(rows: list[dict], name: str, codec: str) -> tuple[np.ndarray, np.ndarray]:
-    """The finite (bpp, psnr) points of one curve, by increasing rate."""
-    points = sorted((r["bpp"], r["psnr"]) for r in rows if r["input"] == name and r["codec"] == codec)
+    """The finite (rate, psnr) points of one curve, by increasing rate."""
+    key = rate_key(rows)
+    points = sorted((r[key], r["psnr"]) for r in rows if r["input"] == name and r["codec"] == codec)
     points = [p for p in points if np.isfinite(p[1])]
     return np.array([p[0] for p in points]), np.array([p[1] for p in points])
 
@@ -245,14 +344,14 @@ def _table(header: list[str], lines: list[list[str]]) -> str:
 def format_points(rows: list[dict]) -> str:
     """Every measured point as a Markdown table."""
     return _table(
-        ["input", "codec", "target", "bytes", "bpp", "PSNR dB", "enc s", "dec s"],
+        ["input", "codec", "target", "bytes", rate_key(rows), "PSNR dB", "enc s", "dec s"],
         [
             [
                 r["input"],
                 r["codec"],
                 f"{r['target']:g}",
                 str(r["bytes"]),
-                f"{r['bpp']:.4f}",
+                f"{r[rate_key(rows)]:.4f}",
                 f"{r['psnr']:.2f}",
                 f"{r['encode_s']:.2f}",
                 f"{r['decode_s']:.2f}",
@@ -266,7 +365,14 @@ def format_summary(rows: list[dict], slopes: bool = False) -> str:
     """One line per curve: its rate range, the BD-PSNR of bandelets over it, and the slope."""
     gain = {(g["input"], g["codec"]): g["gain"] for g in gains(rows)}
     slope = {(s["input"], s["codec"]): s["slope"] for s in decay_slopes(rows)}
-    header = ["input", "codec", "points", "bpp range", "PSNR range", "bandelets' BD-PSNR gain dB"]
+    header = [
+        "input",
+        "codec",
+        "points",
+        f"{rate_key(rows)} range",
+        "PSNR range",
+        "bandelets' BD-PSNR gain dB",
+    ]
     lines = []
     for name, codec in _pairs(rows):
         bpp, quality = _curve(rows, name, codec)

@@ -9,6 +9,7 @@ One module per stage, each plain functions on numpy arrays and ``trimesh.Trimesh
 :mod:`.geometry_image`    sampling positions and normals on the grid; the glued mesh back
 :mod:`.metrics`           RMS symmetric Hausdorff distance (pymeshlab) and its PSNR
 :mod:`.codec`             mesh -> .bdl -> mesh
+:mod:`.draco`             Google's Draco (DracoPy), the mesh anchor of ``bandelets rd``
 ========================  ===============================================================
 
 This package imports trimesh, scipy and pymeshlab; the rest of ``bandelets`` never imports

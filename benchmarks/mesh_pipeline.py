@@ -1,0 +1,72 @@
+"""Time of every stage of mesh coding on a large closed genus-0 mesh (target: under a minute).
+
+The mesh is one of ``../shared/data/meshes`` refined by Loop subdivision (default: the bunny,
+3,485 vertices, twice: 55,730 vertices). Stages: load, subdivide (not part of the pipeline),
+checks, spherical parameterization, sampling of the geometry image, encoding at a rate in
+bits per original vertex, decoding, rebuilding the mesh; then the Hausdorff PSNR of the
+rebuilt mesh against the original (not timed in the total). The numba kernels are compiled
+(or loaded from their cache) by a tiny encode before the clock starts.
+
+    python benchmarks/mesh_pipeline.py [--mesh bunny.off] [--subdivide 2] [--size 256] [--bpv 4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bandelets import codec
+from bandelets.surfaces import checks, geometry_image, metrics, sphere
+from bandelets.surfaces.codec import load_mesh
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mesh", default="bunny.off")
+    parser.add_argument("--subdivide", type=int, default=2, help="Loop subdivision steps (default 2)")
+    parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--bpv", type=float, default=4.0, help="bits per original vertex (default 4)")
+    args = parser.parse_args()
+    if not MESHES.is_dir():
+        sys.exit(f"{MESHES} is absent: this benchmark needs the shared test meshes")
+    codec.encode(np.random.default_rng(0).normal(size=(32, 32, 3)), bpp=2.0, kind="geometry-image")
+
+    times = {}
+
+    def stage(name, call, *a, **k):
+        start = time.perf_counter()
+        result = call(*a, **k)
+        times[name] = time.perf_counter() - start
+        print(f"{name:28s} {times[name]:7.2f} s", flush=True)
+        return result
+
+    mesh = stage("load", load_mesh, MESHES / args.mesh)
+    subdivision = time.perf_counter()
+    mesh = mesh.subdivide_loop(args.subdivide) if args.subdivide else mesh
+    print(f"(subdivide x{args.subdivide}: {time.perf_counter() - subdivision:.2f} s, not counted)")
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    print(f"{len(vertices)} vertices, {len(faces)} faces")
+    stage("checks", checks.check_genus0, vertices, faces)
+    if mesh.volume < 0:
+        faces = faces[:, ::-1]
+    mapped = stage("spherical parameterization", sphere.spherical_parameterization, vertices, faces)
+    print(f"  {mapped.iterations} relaxation steps, distortion {mapped.distortion}")
+    image, _ = stage("sampling", geometry_image.sample, vertices, faces, mapped.points, args.size)
+    rate = args.bpv * len(vertices) / args.size**2
+    data = stage("encode", codec.encode, image, bpp=rate, kind="geometry-image")
+    decoded = stage("decode", codec.decode, data)
+    rebuilt = stage("rebuild mesh", geometry_image.mesh_from_image, decoded)
+    total = sum(times.values())
+    print(f"{'total':28s} {total:7.2f} s  ({8 * len(data) / len(vertices):.2f} bits per vertex)")
+    print(f"Hausdorff PSNR vs the original: {metrics.hausdorff_psnr(mesh, rebuilt):.2f} dB")
+
+
+if __name__ == "__main__":
+    main()
