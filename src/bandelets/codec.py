@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import entropy, metrics, ratecontrol
-from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
+from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, debandeletize_bins
 from .bitstream import (
     HEADER_BYTES,
     KINDS,
@@ -31,7 +31,7 @@ from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
-from .quantize import MAX_INDEX, dequantize, quantize
+from .quantize import dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
@@ -257,10 +257,7 @@ def code_image(
             entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c])
             if squares.order.size:
                 view = known[c].reshape(shape)[where]
-                wavelets = debandeletize(dequantize(view, header.threshold), tree, header.transform_1d)
-                # Hostile thresholds can overflow: the contexts must stay small integers.
-                bins = np.nan_to_num(np.fix(wavelets / header.threshold), posinf=MAX_INDEX, neginf=-MAX_INDEX)
-                view[...] = np.clip(bins, -MAX_INDEX, MAX_INDEX)
+                debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
     return out, quantized, spent
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["quantize", "dequantize", "bin_index", "quantization_error"]
+__all__ = ["quantize", "dequantize", "bin_index", "quantization_error", "bin_and_error"]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
@@ -44,19 +44,23 @@ def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
+def bin_and_error(x: float, threshold: float) -> tuple[int, float]:
+    """:func:`bin_index` and :func:`quantization_error` of one value, with one division."""
+    a = abs(x)
+    # Both branches computed and one selected: no mispredicted jumps in the search's loops.
+    dead = a <= threshold
+    m = 0 if dead else int(a / threshold)
+    e = a if dead else a - (m + RECONSTRUCTION) * threshold
+    return m, e * e
+
+
+@njit(cache=True, inline="always")
 def bin_index(x: float, threshold: float) -> int:
     """``|Q_T|`` bin index of one value: 0 in the dead zone, else ``floor(|x| / T)``."""
-    a = abs(x)
-    if a <= threshold:
-        return 0
-    return int(a / threshold)
+    return bin_and_error(x, threshold)[0]
 
 
 @njit(cache=True, inline="always")
 def quantization_error(x: float, threshold: float) -> float:
     """Squared error ``(x - Q_T(x))**2`` of one value."""
-    a = abs(x)
-    if a <= threshold:
-        return a * a
-    e = a - (int(a / threshold) + RECONSTRUCTION) * threshold
-    return e * e
+    return bin_and_error(x, threshold)[1]
