@@ -501,8 +501,8 @@ def encode_with_stats(
         )
         return encode_at_threshold(coefficients, header)
 
-    magnitudes = np.sort(np.abs(np.concatenate([c.ravel() for c in coefficients])))[::-1]
-    t_max = 2.0 * float(magnitudes[0]) + 1e-300
+    magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
+    t_max = 2.0 * float(magnitudes.max()) + 1e-300
     if threshold is not None:
         return encode_at(float(threshold))
     if bpp is not None:
@@ -514,9 +514,7 @@ def encode_with_stats(
                 f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
                 f"{HEADER_BYTES} bytes of header"
             )
-        # Start where about one coefficient in seven bits of the budget is significant.
-        t_guess = float(magnitudes[min(max(target * 8 // 7, 1), magnitudes.size - 1)]) or t_max / 1e3
-        return ratecontrol.for_size(encode_at, target, t_max, t_guess, progress)
+        return ratecontrol.for_size(encode_at, target, t_max, ratecontrol.size_model(magnitudes), progress)
     if not np.isfinite(psnr):
         raise ValueError(f"psnr must be a finite number, got {psnr}")
     reference = x[..., 0] if x.shape[2] == 1 else x
