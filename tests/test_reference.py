@@ -121,3 +121,16 @@ def test_files_match_the_reference(make, options, monkeypatch):
         slow_decoded = bandelets.decode(fast)
     assert fast == slow
     np.testing.assert_array_equal(bandelets.decode(fast), slow_decoded)
+
+
+def test_decoded_trees_cache_the_leaves_they_would_find():
+    from bandelets.bitstream import unpack
+    from bandelets.samples import crease_normal_map
+
+    header, streams = unpack(bandelets.encode(crease_normal_map(64), threshold=0.005, kind="normal-map"))
+    trees, _, _ = codec.code_image(codec.new_coders(streams), header)
+    assert any(np.any(t.leaves()[3] >= 0) for t in trees)
+    for tree in trees:
+        for cached, found in zip(tree.leaves(), tree._find_leaves(), strict=True):
+            np.testing.assert_array_equal(cached, found)
+            assert cached.dtype == found.dtype

@@ -200,4 +200,7 @@ def code_tree(
         at = widths == MIN_WIDTH << level
         d[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
     # A new tree: the one the directions were decoded with has its leaves cached without them.
-    return Quadtree(root, tuple(leaf), direction)
+    # Its leaves are those, in the same order, with the decoded directions: cached at once.
+    out = Quadtree(root, tuple(leaf), direction)
+    out.__dict__["_leaves"] = (rows, cols, widths, found)
+    return out
