@@ -30,11 +30,14 @@ SIZE_MODEL = (-0.29, 1.17)
 
 
 def _next(x_low: float | None, x_high: float | None, secant: float) -> float:
-    """Secant step, kept strictly inside the bracket ``(x_low, x_high)`` of log T."""
+    """Secant step, kept strictly inside the bracket ``(x_low, x_high)`` of log T: bisection
+    when it leaves the bracket, else at least 2 % of the bracket away from its ends (a
+    near miss of the target is often followed by a step just beside it)."""
     if x_low is not None and x_high is not None:
-        margin = 0.1 * (x_high - x_low)
-        if not x_low + margin <= secant <= x_high - margin:
+        if not x_low < secant < x_high:
             return 0.5 * (x_low + x_high)
+        margin = 0.02 * (x_high - x_low)
+        return min(max(secant, x_low + margin), x_high - margin)
     return secant
 
 
