@@ -32,6 +32,7 @@ which cost 0.04 dB BD-PSNR on the generated crease map for a 3.8x faster search.
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 from numba import njit, prange
@@ -169,6 +170,7 @@ def _search(
     allow_directions: bool,
     stride: int,
     hints: np.ndarray,
+    visit: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     channels = subbands.shape[0]
     n_dirs = orders.shape[0]
@@ -180,8 +182,8 @@ def _search(
     cost = np.empty((rows, cols))
     best = np.full((rows, cols), -1, np.int64)
     for s in prange(rows * cols):
-        r = s // cols
-        c = s % cols
+        r = visit[s] // cols
+        c = visit[s] % cols
         squares = np.empty((channels, n))
         for k in range(channels):
             squares[k] = subbands[k, r * width : (r + 1) * width, c * width : (c + 1) * width].ravel()
@@ -312,4 +314,15 @@ def best_directions(
         allow_directions,
         REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
         np.ascontiguousarray(hints, dtype=np.int64),
+        _visit_order(shape[0] * shape[1]),
     )
+
+
+@cache
+def _visit_order(n: int) -> np.ndarray:
+    """A fixed shuffle of the ``n`` squares: the threads of the parallel loop take contiguous
+    runs of it, which then hold as many busy squares each (the creases of an image are not
+    spread evenly over its rows). The result does not depend on it."""
+    out = np.random.default_rng(0).permutation(n)
+    out.flags.writeable = False
+    return out
