@@ -3,9 +3,12 @@
 For a generated crease normal map of each size: the median over ``--repeat`` runs of
 bandelet encode at 1 bpp (rate control included), encode at a fixed threshold, and decode,
 with OpenJPEG (JPEG2000, 16-bit) and libavif (12-bit, speed 6) encode and decode times on
-the same map through imagecodecs, and the ratios. Then the time per pixel against the
-512 x 512 one, and the peak resident memory of a 2048 x 2048 x 3 bandelet encode (in a child
-process whose high-water mark is reset after the map is generated, Linux only).
+the same map through imagecodecs, and the ratios; also the process CPU time of the bandelet
+runs (all threads: less sensitive to other load on the machine than wall time). Before that,
+the cold start: import, compilation of every numba kernel (empty cache) and a small encode.
+Then the time per pixel against the 512 x 512 one, and the peak resident memory of a
+2048 x 2048 x 3 bandelet encode (in a child process whose high-water mark is reset after the
+map is generated, Linux only).
 
     python benchmarks/speed.py [--sizes 256,512,1024,2048] [--repeat 3]
 """
@@ -13,9 +16,11 @@ process whose high-water mark is reset after the map is generated, Linux only).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from functools import partial
 
@@ -26,13 +31,33 @@ import bandelets
 from bandelets.samples import crease_normal_map
 
 
-def _median_seconds(run, repeat: int) -> float:
-    times = []
+def _median_seconds(run, repeat: int, cpu: list | None = None) -> float:
+    """Median wall time of ``run()``; its median process CPU time appended to ``cpu``."""
+    times, used = [], []
     for _ in range(repeat):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         run()
         times.append(time.perf_counter() - start)
+        used.append(time.process_time() - start_cpu)
+    if cpu is not None:
+        cpu.append(statistics.median(used))
     return statistics.median(times)
+
+
+def _cold_start_seconds() -> float:
+    """Import, encode and decode of a 64 x 64 map in a new process whose numba cache is empty:
+    every kernel compiled (the cost of the very first run after installing)."""
+    code = (
+        "import time; t = time.perf_counter(); import bandelets; "
+        "from bandelets.samples import crease_normal_map; "
+        "bandelets.decode(bandelets.encode(crease_normal_map(64), threshold=0.05, kind='normal-map')); "
+        "print(time.perf_counter() - t)"
+    )
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        command = [sys.executable, "-c", code]
+        out = subprocess.run(command, capture_output=True, text=True, env=env, check=True)
+    return float(out.stdout.split()[-1])
 
 
 def _peak_memory_mib(size: int) -> float:
@@ -58,6 +83,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--memory-size", type=int, default=2048)
     args = parser.parse_args()
+    print(f"cold start (import, compile every kernel, encode + decode 64^2): {_cold_start_seconds():.2f} s")
     start = time.perf_counter()
     bandelets.decode(bandelets.encode(crease_normal_map(64), threshold=0.05, kind="normal-map"))
     print(f"first call (numba cache load or compile): {time.perf_counter() - start:.2f} s")
@@ -69,11 +95,14 @@ def main() -> None:
     for size in (int(s) for s in args.sizes.split(",")):
         normals = crease_normal_map(size, supersampling=1 if size > 1024 else 4)
         data = bandelets.encode(normals, threshold=0.05, kind="normal-map")
-        rated = _median_seconds(partial(bandelets.encode, normals, bpp=1, kind="normal-map"), args.repeat)
-        fixed = _median_seconds(
-            partial(bandelets.encode, normals, threshold=0.05, kind="normal-map"), args.repeat
+        cpu: list[float] = []
+        rated = _median_seconds(
+            partial(bandelets.encode, normals, bpp=1, kind="normal-map"), args.repeat, cpu
         )
-        decode = _median_seconds(partial(bandelets.decode, data), args.repeat)
+        fixed = _median_seconds(
+            partial(bandelets.encode, normals, threshold=0.05, kind="normal-map"), args.repeat, cpu
+        )
+        decode = _median_seconds(partial(bandelets.decode, data), args.repeat, cpu)
         u16 = np.round((normals + 1) / 2 * 65535).astype(np.uint16)
         u12 = np.round((normals + 1) / 2 * 4095).astype(np.uint16)
         j2k_encode = partial(
@@ -93,6 +122,10 @@ def main() -> None:
             f"{size:>5} {rated:>9.3f} {fixed:>7.3f} {decode:>8.3f} "
             + " ".join(f"{t:>8.3f}" for t in times)
             + f" {per_pixel[size]:>10.3f}"
+        )
+        print(
+            f"      bandelets CPU time (all threads): 1 bpp {cpu[0]:.3f} s, T {cpu[1]:.3f} s, "
+            f"decode {cpu[2]:.3f} s"
         )
         print(
             f"      ratios to bandelets at 1 bpp: j2k encode x{rated / times[0]:.1f}, "

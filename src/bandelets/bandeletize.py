@@ -10,8 +10,8 @@ order. Squares without a direction (``d = NULL``, stored as -1) keep their wavel
 coefficients. Both steps are permutations and orthonormal maps, so the whole is an
 orthonormal change of basis of the subband, inverted exactly by :func:`debandeletize`.
 
-All squares sharing a width and a direction are gathered into one ``(n_squares, L*L)``
-array and transformed together.
+A compiled loop reads, transforms and writes back the squares of one width one by one,
+straight from and into the subband: no index arrays.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from .geometry import directions, zigzag
+from .quantize import MAX_INDEX, RECONSTRUCTION
 
 __all__ = [
     "TRANSFORMS_1D",
@@ -30,6 +31,7 @@ __all__ = [
     "transform_rows",
     "bandeletize",
     "debandeletize",
+    "debandeletize_bins",
 ]
 
 #: 1D transforms along the reordered samples, by the order ``k`` of their polynomial
@@ -68,6 +70,18 @@ def alpert_matrices(n: int, k: int) -> np.ndarray:
     return out
 
 
+@njit(cache=True, inline="always")
+def _level(v, tmp, mats, level, n, k):
+    half = n // 2
+    for g in range(half // k):
+        for row in range(2 * k):
+            acc = 0.0
+            for col in range(2 * k):
+                acc += mats[level, row, col] * v[2 * k * g + col]
+            tmp[(g * k + row) if row < k else (half + g * k + row - k)] = acc
+    v[:n] = tmp[:n]
+
+
 @njit(cache=True)
 def multiwavelet_inplace(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> None:
     """Full 1D multiwavelet transform of ``v`` in place (:func:`alpert_matrices`).
@@ -78,15 +92,14 @@ def multiwavelet_inplace(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> No
     k = mats.shape[1] // 2
     n = v.shape[0]
     for level in range(mats.shape[0]):
-        half = n // 2
-        for g in range(half // k):
-            for row in range(2 * k):
-                acc = 0.0
-                for col in range(2 * k):
-                    acc += mats[level, row, col] * v[2 * k * g + col]
-                tmp[(g * k + row) if row < k else (half + g * k + row - k)] = acc
-        v[:n] = tmp[:n]
-        n = half
+        # Literal orders let the compiler unroll the small matrix products (same arithmetic).
+        if k == 2:
+            _level(v, tmp, mats, level, n, 2)
+        elif k == 1:
+            _level(v, tmp, mats, level, n, 1)
+        else:
+            _level(v, tmp, mats, level, n, k)
+        n //= 2
 
 
 @njit(cache=True)
@@ -125,18 +138,48 @@ def transform_rows(x: np.ndarray, kind: str = "alpert2", inverse: bool = False) 
 
 
 def _square_groups(tree):
-    """Yield ``(width, orders, rows, cols)`` for the bandelet squares of each width.
+    """Yield ``(width, orders, top, left, dirs)`` for the bandelet squares of each width.
 
-    ``orders`` (n_squares, L*L) is each square's reordering; ``rows`` and ``cols``
-    (n_squares, L, L) index the squares' samples in the subband.
+    ``orders`` (n_dirs, L*L) holds the reorderings of that width; ``top``, ``left`` and
+    ``dirs`` (n_squares,) the corner and direction index of each of its squares.
     """
     top, left, widths, dirs = tree.leaves()
     for width in np.unique(widths[dirs >= 0]):
         pick = (widths == width) & (dirs >= 0)
-        offsets = np.arange(width)
-        rows = top[pick, None, None] + offsets[None, :, None]
-        cols = left[pick, None, None] + offsets[None, None, :]
-        yield int(width), directions(int(width))[1][dirs[pick]], rows, cols
+        yield int(width), directions(int(width))[1], top[pick], left[pick], dirs[pick]
+
+
+@njit(cache=True)
+def _squares(source, out, width, top, left, dirs, orders, stored, mats, inverse):
+    """(Inverse) bandeletization of the squares of one width, read from ``source`` and written
+    into ``out``: samples in the direction's order, 1D transform, zig-zag storage ``stored``."""
+    n = width * width
+    v = np.empty(n)
+    tmp = np.empty(n)
+    for s in range(top.shape[0]):
+        order = orders[dirs[s]]
+        if inverse:
+            for i in range(n):
+                v[i] = source[top[s] + stored[i] // width, left[s] + stored[i] % width]
+            _inverse_1d(v, tmp, mats)
+            for i in range(n):
+                out[top[s] + order[i] // width, left[s] + order[i] % width] = v[i]
+        else:
+            for i in range(n):
+                v[i] = source[top[s] + order[i] // width, left[s] + order[i] % width]
+            multiwavelet_inplace(v, tmp, mats)
+            for i in range(n):
+                out[top[s] + stored[i] // width, left[s] + stored[i] % width] = v[i]
+
+
+def _transform(subband: np.ndarray, tree, kind: str, inverse: bool) -> np.ndarray:
+    subband = np.asarray(subband, dtype=np.float64)
+    out = subband.copy()
+    k = TRANSFORMS_1D.index(kind) + 1
+    for width, orders, top, left, dirs in _square_groups(tree):
+        mats = alpert_matrices(width * width, k)
+        _squares(subband, out, width, top, left, dirs, orders, zigzag(width), mats, inverse)
+    return out
 
 
 def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
@@ -156,23 +199,52 @@ def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     ndarray, shape (h, w): the wavelet coefficients with every square that has a direction
     replaced by its 1D coefficients in zig-zag order.
     """
-    out = subband.copy()
-    for width, orders, rows, cols in _square_groups(tree):
-        squares = subband[rows, cols].reshape(len(rows), -1)
-        coeffs = transform_rows(np.take_along_axis(squares, orders, axis=1), kind)
-        stored = np.empty_like(coeffs)
-        stored[:, zigzag(width)] = coeffs
-        out[rows, cols] = stored.reshape(len(rows), width, width)
-    return out
+    return _transform(subband, tree, kind, inverse=False)
 
 
 def debandeletize(coefficients: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     """Inverse of :func:`bandeletize`: wavelet coefficients of the subband."""
-    out = coefficients.copy()
-    for _, orders, rows, cols in _square_groups(tree):
-        stored = coefficients[rows, cols].reshape(len(rows), -1)
-        signal = transform_rows(stored[:, zigzag(rows.shape[1])], kind, inverse=True)
-        squares = np.empty_like(signal)
-        np.put_along_axis(squares, orders, signal, axis=1)
-        out[rows, cols] = squares.reshape(len(rows), rows.shape[1], rows.shape[1])
-    return out
+    return _transform(coefficients, tree, kind, inverse=True)
+
+
+@njit(cache=True)
+def _bins(bins, width, top, left, dirs, orders, stored, mats, threshold):
+    n = width * width
+    v = np.empty(n)
+    tmp = np.empty(n)
+    for s in range(top.shape[0]):
+        order = orders[dirs[s]]
+        for i in range(n):
+            q = bins[top[s] + stored[i] // width, left[s] + stored[i] % width]
+            # quantize.dequantize, one value at a time.
+            x = (abs(q) + RECONSTRUCTION) * threshold
+            v[i] = x if q > 0 else (-x if q < 0 else 0.0)
+        _inverse_1d(v, tmp, mats)
+        for i in range(n):
+            b = v[i] / threshold
+            # Hostile thresholds can overflow: the bins must stay small integers.
+            if b != b:
+                b = 0.0
+            b = min(max(b, -MAX_INDEX), MAX_INDEX)
+            bins[top[s] + order[i] // width, left[s] + order[i] % width] = int(b)
+
+
+def debandeletize_bins(bins: np.ndarray, tree, threshold: float, kind: str = "alpert2") -> None:
+    """Replace, in place, the bin indices of every bandelet square by those of the wavelet
+    coefficients they decode to: ``fix(debandeletize(dequantize(bins)) / T)``, clipped to
+    ``[-MAX_INDEX, MAX_INDEX]`` (NaN gives 0).
+
+    Parameters
+    ----------
+    bins : ndarray of int64, shape (h, w)
+        Signed bin indices of one subband (a view may be passed); outside the squares untouched.
+    tree : bandelets.quadtree.Quadtree
+    threshold : float
+        ``T``.
+    kind : str
+        1D transform, one of :data:`TRANSFORMS_1D`.
+    """
+    k = TRANSFORMS_1D.index(kind) + 1
+    for width, orders, top, left, dirs in _square_groups(tree):
+        mats = alpert_matrices(width * width, k)
+        _bins(bins, width, top, left, dirs, orders, zigzag(width), mats, float(threshold))

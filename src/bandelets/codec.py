@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import entropy, metrics, ratecontrol
-from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize
+from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, debandeletize_bins
 from .bitstream import (
     HEADER_BYTES,
     KINDS,
@@ -31,7 +31,7 @@ from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
-from .quantize import MAX_INDEX, RECONSTRUCTION, dequantize, quantize
+from .quantize import RECONSTRUCTION, dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
 
@@ -259,10 +259,7 @@ def code_image(
             entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c])
             if squares.order.size:
                 view = known[c].reshape(shape)[where]
-                wavelets = debandeletize(dequantize(view, header.threshold), tree, header.transform_1d)
-                # Hostile thresholds can overflow: the contexts must stay small integers.
-                bins = np.nan_to_num(np.fix(wavelets / header.threshold), posinf=MAX_INDEX, neginf=-MAX_INDEX)
-                view[...] = np.clip(bins, -MAX_INDEX, MAX_INDEX)
+                debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
     return out, quantized, spent
 
@@ -587,8 +584,8 @@ def encode_with_stats(
         )
         return encode_at_threshold(coefficients, header)
 
-    magnitudes = np.sort(np.abs(np.concatenate([c.ravel() for c in coefficients])))[::-1]
-    t_max = 2.0 * float(magnitudes[0]) + 1e-300
+    magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
+    t_max = 2.0 * float(magnitudes.max()) + 1e-300
     if threshold is not None:
         return encode_at(float(threshold))
     if bpp is not None:
@@ -600,9 +597,7 @@ def encode_with_stats(
                 f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
                 f"{HEADER_BYTES} bytes of header"
             )
-        # Start where about one coefficient in seven bits of the budget is significant.
-        t_guess = float(magnitudes[min(max(target * 8 // 7, 1), magnitudes.size - 1)]) or t_max / 1e3
-        return ratecontrol.for_size(encode_at, target, t_max, t_guess, progress)
+        return ratecontrol.for_size(encode_at, target, t_max, ratecontrol.size_model(magnitudes), progress)
     if not np.isfinite(psnr):
         raise ValueError(f"psnr must be a finite number, got {psnr}")
     reference = x[..., 0] if x.shape[2] == 1 else x

@@ -32,13 +32,15 @@ which cost 0.04 dB BD-PSNR on the generated crease map for a 3.8x faster search.
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 from numba import njit, prange
 
 from .bandeletize import TRANSFORMS_1D, alpert_matrices, multiwavelet_inplace
 from .geometry import directions
-from .quantize import bin_index, quantization_error
+from .quadtree import MAX_WIDTH
+from .quantize import bin_and_error
 
 __all__ = ["LAMBDA", "RATE_MODEL", "square_features", "coefficient_bits", "geometry_bits", "best_directions"]
 
@@ -57,11 +59,31 @@ LAMBDA = 3.0 / 28.0
 RATE_MODEL = np.array([0.26, 3.73, 0.89, 0.14, 5.9, 0.8, 0.3, 1.0])
 
 
+@njit(cache=True)
+def _libm_table(size: int, log_gamma: bool) -> np.ndarray:
+    """``lgamma(i)`` or ``log2(i)`` (0 at 0) for ``i < size``, by the compiled code's own libm:
+    looking them up gives the very values calling them would (CPython's lgamma differs)."""
+    out = np.zeros(size)
+    for i in range(1, size):
+        out[i] = math.lgamma(i) if log_gamma else math.log2(i)
+    return out
+
+
+# Tables for the squares' sizes: a call to lgamma costs about 60 ns, one per 1D scale.
+_LGAMMA = _libm_table(MAX_WIDTH * MAX_WIDTH + 2, True)
+_LOG2 = _libm_table(1024, False)
+
+
+@njit(cache=True, inline="always")
+def _lgamma(n: int) -> float:
+    return _LGAMMA[n] if n < _LGAMMA.shape[0] else math.lgamma(n)
+
+
 @njit(cache=True, inline="always")
 def _log2_binomial(n: int, k: int) -> float:
     if k == 0 or k == n:
         return 0.0
-    return (math.lgamma(n + 1) - math.lgamma(k + 1) - math.lgamma(n - k + 1)) / math.log(2.0)
+    return (_lgamma(n + 1) - _lgamma(k + 1) - _lgamma(n - k + 1)) / math.log(2.0)
 
 
 @njit(cache=True)
@@ -94,11 +116,11 @@ def square_features(values: np.ndarray, threshold: float, k: int) -> tuple[float
         stop = n if k == 0 else (k if start == 0 else 2 * start)
         significant = 0
         for i in range(start, stop):
-            distortion += quantization_error(values[i], threshold)
-            m = bin_index(values[i], threshold)
-            if m > 0:
-                significant += 1
-                magnitude += math.log2(m)
+            m, e = bin_and_error(values[i], threshold)
+            distortion += e
+            # Adding _LOG2[0] = 0.0 leaves the sum as it is: no jump on significance.
+            significant += m > 0
+            magnitude += _LOG2[m] if m < _LOG2.shape[0] else math.log2(m)
         significance += _log2_binomial(stop - start, significant)
         count += significant
         start = stop
@@ -148,6 +170,7 @@ def _search(
     allow_directions: bool,
     stride: int,
     hints: np.ndarray,
+    visit: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     channels = subbands.shape[0]
     n_dirs = orders.shape[0]
@@ -159,8 +182,8 @@ def _search(
     cost = np.empty((rows, cols))
     best = np.full((rows, cols), -1, np.int64)
     for s in prange(rows * cols):
-        r = s // cols
-        c = s % cols
+        r = visit[s] // cols
+        c = visit[s] % cols
         squares = np.empty((channels, n))
         for k in range(channels):
             squares[k] = subbands[k, r * width : (r + 1) * width, c * width : (c + 1) * width].ravel()
@@ -172,7 +195,10 @@ def _search(
         # basis (no coefficient can exceed T): its directions cannot beat NULL.
         quiet = True
         for k in range(channels):
-            if np.sum(squares[k] ** 2) > threshold * threshold:
+            energy = 0.0
+            for i in range(n):
+                energy += squares[k, i] * squares[k, i]
+            if energy > threshold * threshold:
                 quiet = False
         n_hints = hints.shape[2]
         has_hints = stride > 1 and n_hints > 0 and np.max(hints[r, c]) >= 0
@@ -288,4 +314,15 @@ def best_directions(
         allow_directions,
         REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
         np.ascontiguousarray(hints, dtype=np.int64),
+        _visit_order(shape[0] * shape[1]),
     )
+
+
+@cache
+def _visit_order(n: int) -> np.ndarray:
+    """A fixed shuffle of the ``n`` squares: the threads of the parallel loop take contiguous
+    runs of it, which then hold as many busy squares each (the creases of an image are not
+    spread evenly over its rows). The result does not depend on it."""
+    out = np.random.default_rng(0).permutation(n)
+    out.flags.writeable = False
+    return out

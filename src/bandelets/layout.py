@@ -28,15 +28,20 @@ bandelet by 1D scale counted from the finest.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
+from numba import njit
 
 from .bandeletize import TRANSFORMS_1D
 from .geometry import zigzag
-from .quadtree import Quadtree
+from .quadtree import MAX_WIDTH, MIN_WIDTH, Quadtree
 from .wavelets import subband_slices
 
 __all__ = ["Segment", "approximation_plan", "subband_plan"]
+
+
+_MAX_LEVELS = (MAX_WIDTH // MIN_WIDTH).bit_length()  # square sides 4 .. MAX_WIDTH
 
 
 @dataclass(frozen=True)
@@ -58,31 +63,37 @@ class Segment:
     neighbours: np.ndarray
 
 
-def _raster_part(rows, cols, box, parent_box, width, cls):
-    """Wavelet coefficients at subband coordinates ``rows, cols``; ``box`` = (y0, x0, h, w)."""
+@njit(cache=True)
+def _raster_part(skip, box, parent_box, width, cls):
+    """Wavelet coefficients of the subband ``box`` = (y0, x0, h, w) where ``skip`` (h, w) is
+    False, in raster order; ``parent_box`` (y0, x0) of the coarser subband, or empty."""
     y0, x0, h, w = box
+    n = skip.size - np.count_nonzero(skip)
+    order = np.empty(n, np.int64)
+    neighbours = np.empty((n, 5), np.int64)
+    i = 0
+    for r in range(h):
+        for c in range(w):
+            if skip[r, c]:
+                continue
+            at = (y0 + r) * width + x0 + c
+            order[i] = at
+            neighbours[i, 0] = at - 1 if c > 0 else -1
+            neighbours[i, 1] = at - width if r > 0 else -1
+            neighbours[i, 2] = at - width - 1 if r > 0 and c > 0 else -1
+            neighbours[i, 3] = at - width + 1 if r > 0 and c + 1 < w else -1
+            neighbours[i, 4] = (
+                (parent_box[0] + r // 2) * width + parent_box[1] + c // 2 if parent_box.size else -1
+            )
+            i += 1
+    return order, np.full(n, cls, np.int64), neighbours
 
-    def at(r, c, ok):
-        return np.where(ok, (y0 + r) * width + x0 + c, -1)
 
-    neighbours = np.stack(
-        [
-            at(rows, cols - 1, cols > 0),
-            at(rows - 1, cols, rows > 0),
-            at(rows - 1, cols - 1, (rows > 0) & (cols > 0)),
-            at(rows - 1, cols + 1, (rows > 0) & (cols + 1 < w)),
-            np.full(rows.shape, -1)
-            if parent_box is None
-            else (parent_box[0] + rows // 2) * width + parent_box[1] + cols // 2,
-        ],
-        axis=-1,
-    )
-    return at(rows, cols, True), np.full(rows.shape, cls), neighbours
-
-
-def _bandelet_part(rows, cols, square, box, width, k):
-    """1D coefficients (order ``k``) of bandelet squares of side ``square`` at ``rows, cols``."""
-    y0, x0 = box[:2]
+@cache
+def _square_tables(square: int, k: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coding order of the 1D coefficients (order ``k``) of a bandelet square of side ``square``
+    in a channel ``width`` wide: raveled offset of each from the square's corner, context class
+    of each, and the index of each of its 5 neighbours among them (-1 where absent)."""
     n = square * square
     index = np.arange(n)
     scale = np.zeros(n, np.int64)  # 1D scale: wavelets of scale s start at k 2**s
@@ -105,12 +116,35 @@ def _bandelet_part(rows, cols, square, box, width, k):
         axis=-1,
     )
     zz = zigzag(square)
-    # Raveled position of the k-th stored coefficient of each square.
-    local = (zz // square)[None, :] * width + (zz % square)[None, :]
-    corner = ((y0 + rows) * width + x0 + cols)[:, None]
-    where = corner + local
-    neighbours = np.where(relative[None] >= 0, where[:, np.maximum(relative, 0)], -1)
-    return where, np.broadcast_to(classes, where.shape), neighbours
+    # Raveled position of the k-th stored coefficient, from the square's corner.
+    local = (zz // square) * width + zz % square
+    return local.astype(np.int64), classes.astype(np.int64), relative.astype(np.int64)
+
+
+@njit(cache=True)
+def _bandelet_part(in_square, top, left, sizes, box, width, tables):
+    """1D coefficients of the bandelet squares (corners ``top, left``, sides ``sizes``, in
+    coding order), each square's coarse first; marks the squares in ``in_square``.
+    ``tables[j]`` are the :func:`_square_tables` of side ``MIN_WIDTH << j``."""
+    n = 0
+    for s in range(top.shape[0]):
+        n += sizes[s] * sizes[s]
+    order = np.empty(n, np.int64)
+    classes = np.empty(n, np.int64)
+    neighbours = np.empty((n, 5), np.int64)
+    i = 0
+    for s in range(top.shape[0]):
+        size = sizes[s]
+        in_square[top[s] : top[s] + size, left[s] : left[s] + size] = True
+        local, cls, relative = tables[int(np.log2(size // MIN_WIDTH))]
+        corner = (box[0] + top[s]) * width + box[1] + left[s]
+        for j in range(size * size):
+            order[i + j] = corner + local[j]
+            classes[i + j] = cls[j]
+            for m in range(5):
+                neighbours[i + j, m] = corner + local[relative[j, m]] if relative[j, m] >= 0 else -1
+        i += size * size
+    return order, classes, neighbours
 
 
 def _subband_box(shape, level, orientation):
@@ -119,20 +153,11 @@ def _subband_box(shape, level, orientation):
     return ((0, w), (h, 0), (h, w))[orientation] + (h, w)
 
 
-def _segment(part) -> Segment:
-    order, classes, neighbours = part
-    return Segment(
-        order.astype(np.int64).ravel(),
-        np.asarray(classes, np.int64).ravel(),
-        neighbours.astype(np.int64).reshape(-1, 5),
-    )
-
-
 def approximation_plan(shape: tuple[int, int], levels: int) -> Segment:
     """Coding order of the approximation subband of a padded channel of ``shape``."""
     h, w = shape[0] >> levels, shape[1] >> levels
-    rows, cols = np.divmod(np.arange(h * w), w)
-    return _segment(_raster_part(rows, cols, (0, 0, h, w), None, shape[1], 0))
+    everything = np.zeros((h, w), np.bool_)
+    return Segment(*_raster_part(everything, (0, 0, h, w), np.zeros(0, np.int64), shape[1], 0))
 
 
 def subband_plan(
@@ -156,25 +181,11 @@ def subband_plan(
     k = TRANSFORMS_1D.index(transform_1d) + 1
     level, orientation, _ = subband_slices(shape, levels)[index]
     box = _subband_box(shape, level, orientation)
-    parent = _subband_box(shape, level + 1, orientation) if level < levels else None
+    parent = np.array(_subband_box(shape, level + 1, orientation)[:2] if level < levels else (), np.int64)
     top, left, sizes, dirs = tree.leaves()
-    in_square = np.zeros(box[2:], bool)
-    rank = np.arange(top.shape[0])
-    parts = []
-    for size in np.unique(sizes[dirs >= 0]):
-        pick = (sizes == size) & (dirs >= 0)
-        parts.append((rank[pick], _bandelet_part(top[pick], left[pick], int(size), box, shape[1], k)))
-        for r0, c0 in zip(top[pick], left[pick], strict=True):
-            in_square[r0 : r0 + size, c0 : c0 + size] = True
-    if parts:
-        ranks = np.concatenate([np.repeat(r, p[0].shape[1]) for r, p in parts])
-        inner = np.concatenate([np.tile(np.arange(p[0].shape[1]), len(r)) for r, p in parts])
-        sort = np.lexsort((inner, ranks))
-        squares = tuple(
-            np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort] for j in range(3)
-        )
-    else:
-        squares = (np.zeros(0), np.zeros(0), np.zeros((0, 5)))
-    rows, cols = np.nonzero(~in_square)
-    rest = _raster_part(rows, cols, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2))
-    return _segment(squares), _segment(rest)
+    bandelet = dirs >= 0
+    in_square = np.zeros(box[2:], np.bool_)
+    tables = tuple(_square_tables(MIN_WIDTH << j, k, shape[1]) for j in range(_MAX_LEVELS))
+    squares = _bandelet_part(in_square, top[bandelet], left[bandelet], sizes[bandelet], box, shape[1], tables)
+    rest = _raster_part(in_square, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2))
+    return Segment(*squares), Segment(*rest)

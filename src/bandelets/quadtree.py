@@ -122,7 +122,8 @@ class Quadtree:
 
 def _morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     code = np.zeros(rows.shape, np.int64)
-    for bit in range(16):
+    top = int(max(rows.max(initial=0), cols.max(initial=0)))
+    for bit in range(top.bit_length()):
         code |= ((cols >> bit) & 1) << (2 * bit)
         code |= ((rows >> bit) & 1) << (2 * bit + 1)
     return code

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["quantize", "dequantize", "bin_index", "quantization_error"]
+__all__ = ["quantize", "dequantize", "bin_index", "quantization_error", "bin_and_error"]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
@@ -35,33 +35,61 @@ def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
     -------
     ndarray of int32, same shape as ``x``.
     """
-    q = np.floor(np.abs(x) / threshold)
-    q[np.abs(x) <= threshold] = 0
-    if q.size and q.max() >= MAX_INDEX:
+    x = np.asarray(x, np.float64)
+    q = np.empty(x.shape, np.int32)
+    if _quantize(x.ravel(), float(threshold), q.reshape(-1)) >= MAX_INDEX:
         raise ValueError(f"threshold {threshold:g} is too small for values of this magnitude")
-    return (np.sign(x) * q).astype(np.int32)
+    return q
+
+
+@njit(cache=True, error_model="numpy")  # T = 0 divides to inf, then refused
+def _quantize(x, threshold, out):
+    """Fills ``out`` with the bin indices of ``x``; returns the largest magnitude, unless it
+    reaches MAX_INDEX (then returns it at once, ``out`` unfinished)."""
+    top = 0.0
+    for i in range(x.shape[0]):
+        a = abs(x[i])
+        m = 0.0 if a <= threshold else np.floor(a / threshold)
+        if m >= MAX_INDEX:
+            return m
+        top = max(top, m)
+        out[i] = np.int32(np.sign(x[i]) * m)
+    return top
 
 
 def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
     """Reconstruction ``sign(q) (|q| + RECONSTRUCTION) T`` of signed bin indices (0 stays 0)."""
-    q = q.astype(np.float64)
-    return np.sign(q) * (np.abs(q) + RECONSTRUCTION) * threshold
+    q = np.asarray(q)
+    out = np.empty(q.shape)
+    _dequantize(q.ravel(), float(threshold), out.reshape(-1))
+    return out
+
+
+@njit(cache=True)
+def _dequantize(q, threshold, out):
+    for i in range(q.shape[0]):
+        v = float(q[i])
+        out[i] = np.sign(v) * (abs(v) + RECONSTRUCTION) * threshold
+
+
+@njit(cache=True, inline="always")
+def bin_and_error(x: float, threshold: float) -> tuple[int, float]:
+    """:func:`bin_index` and :func:`quantization_error` of one value, with one division."""
+    a = abs(x)
+    # Both branches computed and one selected: no mispredicted jumps in the search's loops.
+    dead = a <= threshold
+    m = 0 if dead else int(a / threshold)
+    e = a if dead else a - (m + RECONSTRUCTION) * threshold
+    return m, e * e
 
 
 @njit(cache=True, inline="always")
 def bin_index(x: float, threshold: float) -> int:
     """``|Q_T|`` bin index of one value: 0 in the dead zone, else ``floor(|x| / T)``."""
-    a = abs(x)
-    if a <= threshold:
-        return 0
-    return int(a / threshold)
+    return bin_and_error(x, threshold)[0]
 
 
 @njit(cache=True, inline="always")
 def quantization_error(x: float, threshold: float) -> float:
     """Squared error ``(x - Q_T(x))**2`` of one value."""
-    a = abs(x)
-    if a <= threshold:
-        return a * a
-    e = a - (int(a / threshold) + RECONSTRUCTION) * threshold
-    return e * e
+    return bin_and_error(x, threshold)[1]

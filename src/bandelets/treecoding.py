@@ -49,11 +49,13 @@ def _cell_maps(tree: Quadtree) -> tuple[np.ndarray, np.ndarray]:
     """Leaf width and direction angle (NaN for NULL) of every 4 x 4 cell of a quadtree."""
     widths = np.zeros(tree.leaf[0].shape if tree.leaf else (0, 0), np.int64)
     angles = np.full(widths.shape, np.nan)
-    for r, c, w, d in zip(*tree.leaves(), strict=True):
-        cells = (slice(r // MIN_WIDTH, (r + w) // MIN_WIDTH), slice(c // MIN_WIDTH, (c + w) // MIN_WIDTH))
-        widths[cells] = w
-        if d >= 0:
-            angles[cells] = directions(int(w))[0][d]
+    opened = tree.open_nodes()
+    for level, (here, d) in enumerate(zip(tree.leaf, tree.direction, strict=True)):
+        width = MIN_WIDTH << level
+        table = np.append(directions(width)[0], np.nan)  # d = -1 reads the NaN
+        cells = (here & opened[level]).repeat(1 << level, 0).repeat(1 << level, 1)
+        widths[cells] = width
+        angles[cells] = table[d].repeat(1 << level, 0).repeat(1 << level, 1)[cells]
     return widths, angles
 
 
@@ -198,4 +200,7 @@ def code_tree(
         at = widths == MIN_WIDTH << level
         d[rows[at] // (MIN_WIDTH << level), cols[at] // (MIN_WIDTH << level)] = found[at]
     # A new tree: the one the directions were decoded with has its leaves cached without them.
-    return Quadtree(root, tuple(leaf), direction)
+    # Its leaves are those, in the same order, with the decoded directions: cached at once.
+    out = Quadtree(root, tuple(leaf), direction)
+    out.__dict__["_leaves"] = (rows, cols, widths, found)
+    return out

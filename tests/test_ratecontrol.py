@@ -1,0 +1,38 @@
+"""Rate control: the size model and the search it guides."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from bandelets import ratecontrol
+
+
+def _magnitudes(rng):
+    # Heavy-tailed like wavelet coefficients: most small, a few large.
+    return np.abs(rng.standard_t(1.5, 200_000)) * 0.01
+
+
+def test_size_model_falls_with_the_threshold(rng):
+    model = ratecontrol.size_model(_magnitudes(rng))
+    sizes = [model(math.log(t)) for t in np.geomspace(1e-4, 10.0, 40)]
+    assert np.all(np.diff(sizes) <= 0)
+    assert sizes[0] - sizes[-1] > 5  # from far more bytes than coefficients to almost none
+
+
+def test_for_size_meets_the_target_in_few_encodings(rng):
+    """An encoder whose sizes stray from the model by a factor and a slow drift."""
+    model = ratecontrol.size_model(_magnitudes(rng))
+    calls = []
+
+    def encode_at(t):
+        calls.append(t)
+        size = math.exp(model(math.log(t)) + 0.3 - 0.05 * math.log(t))
+        return SimpleNamespace(data=b"x" * int(size))
+
+    target = 20_000
+    result = ratecontrol.for_size(encode_at, target, t_max=1e3, model=model)
+    assert (1 - ratecontrol.SIZE_TOLERANCE) * target <= len(result.data) <= target
+    assert len(calls) <= 3
