@@ -20,6 +20,9 @@ MAX_INDEX = 2**30
 #: Where inside its bin a value is reconstructed: ``(q + RECONSTRUCTION) T``. The paper takes
 #: the middle (1/2); the coefficients inside a bin decrease with magnitude, and their mean
 #: sits at 0.42 to 0.47 of the bin on the generated normal maps (0.44: +0.06 dB BD-PSNR).
+# Compiled into the kernels of bandeletize.py and lagrangian.py as a constant: numba's cache does
+# not see a change here, so delete src/bandelets/__pycache__/*.nb[ic] after changing it
+# (tests/test_reference.py fails on a stale cache).
 RECONSTRUCTION = 0.44
 
 
