@@ -67,7 +67,7 @@ def test_reencoding_the_golden_input_gives_the_same_bytes(name):
     )
 
 
-@pytest.mark.parametrize("version", [0, FORMAT_VERSION + 1, 255])
+@pytest.mark.parametrize("version", [0, 1, FORMAT_VERSION + 1, 255])
 def test_another_version_is_refused_by_name(version):
     body = bytearray((DATA / NAMES[0]).read_bytes()[:-4])
     body[4] = version
