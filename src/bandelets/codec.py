@@ -401,7 +401,7 @@ def _local_frames(coefficients: list[np.ndarray], header: Header):
     for c, d in zip(coefficients, decoded, strict=True):
         d[:h, :w] = dequantize(quantize(c[:h, :w], t), t)
     slices = subband_slices(shape, levels)
-    turned = []  # frames of the levels already turned, coarsest first
+    turned = []  # the frames of the level turned last
 
     def before(index: int, trees: list) -> None:
         if index % 3:
@@ -416,7 +416,7 @@ def _local_frames(coefficients: list[np.ndarray], header: Header):
                 decoded, turned[-1], slices[index - 1][0], levels, header.normal_weight, local=False
             )
         level = slices[index][0]
-        turned.append(frames.level_frames(decoded, level, *args))
+        turned[:] = [frames.level_frames(decoded, level, *args)]
         frames.rotate(local, turned[-1], level, levels, header.normal_weight, local=True)
 
     return local, before
@@ -530,8 +530,8 @@ def encode(
     depth : {0, 8, 16}
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
     frames : bool
-        Geometry images only: code the detail coefficients in local frames estimated from the
-        decoded approximation (:mod:`bandelets.frames`).
+        Geometry images only: code the detail coefficients of each level in local frames
+        (normal, tangents) estimated from the decoded coarser levels (:mod:`bandelets.frames`).
     normal_weight : float
         With ``frames``: precision given to the normal component over the tangential ones,
         from 1/64 to 64.
