@@ -34,7 +34,7 @@ VARIANTS = {
     "symmetric": {"extension": "symmetric"},
     "plain": {"frames": False, "extension": "symmetric"},
     "weight1": {"normal_weight": 1.0},
-    "weight2": {"normal_weight": 2.0},
+    "weight3": {"normal_weight": 3.0},
     "weight4": {"normal_weight": 4.0},
 }
 

@@ -238,7 +238,7 @@ def geometry_file():
 
 def test_geometry_options_are_read_back(geometry_file):
     header, _ = unpack(geometry_file)
-    assert (header.extension, header.frames, header.normal_weight) == ("spherical", True, 3.0)
+    assert (header.extension, header.frames, header.normal_weight) == ("spherical", True, 2.0)
 
 
 @pytest.mark.parametrize(

@@ -57,8 +57,8 @@ def test_encode_decode_mesh_is_closed_and_close():
     image = make_geometry_image(mesh, 32).positions
     data = encode_mesh(mesh, image=image, n_bytes=1500)
     assert len(data) <= 1500
-    header, _ = unpack(data)  # the defaults: local frames, normal weight 3, spherical extension
-    assert (header.frames, header.normal_weight, header.extension) == (True, 3.0, "spherical")
+    header, _ = unpack(data)  # the defaults: local frames, normal weight 2, spherical extension
+    assert (header.frames, header.normal_weight, header.extension) == (True, 2.0, "spherical")
     decoded = decode_mesh(data)
     check_genus0(decoded.vertices, decoded.faces)
     assert decoded.is_watertight and decoded.volume > 0

@@ -116,9 +116,9 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--normal-weight",
         type=float,
-        default=3.0,
+        default=2.0,
         metavar="W",
-        help="precision of the normal component over the tangential ones in local frames (default 3)",
+        help="precision of the normal component over the tangential ones in local frames (default 2)",
     )
     p.add_argument(
         "--extension",

@@ -4,8 +4,9 @@ The Hausdorff distance between surfaces hardly sees an error that slides a point
 surface, but the L2 error of the three position channels counts it in full. The detail
 coefficients of the positions are therefore expressed, at every place, in a local frame
 (normal, first tangent, second tangent), and the normal component is multiplied by a weight
-``w`` (3 by default) before the basis search and the quantization, and divided by it after:
-its error is ``w`` times smaller for the same threshold.
+``w`` before the basis search and the quantization, and divided by it after: its error is
+``w`` times smaller for the same threshold. The paper uses 3; 2 measures a little better
+(``benchmarks/rd_meshes.py``) and is the default of :func:`bandelets.encode`.
 
 The decoder must know the frames of a level before it can turn its details back, so they come
 from what it has decoded before them: the approximation and the coarser levels, dequantized

@@ -122,7 +122,7 @@ def encode_mesh(
     n_bytes: int | None = None,
     transform: str = "bandelet",
     frames: bool = True,
-    normal_weight: float = 3.0,
+    normal_weight: float = 2.0,
     extension: str = "spherical",
     image: np.ndarray | None = None,
 ) -> bytes:
