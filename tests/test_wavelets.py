@@ -116,10 +116,10 @@ def _smooth_on_the_sphere(side: int) -> np.ndarray:
     return np.exp(0.8 * p[..., 0] - 0.5 * p[..., 1] + 0.3 * p[..., 2]) + np.sin(2 * p[..., 1] + p[..., 2])
 
 
-def _border_energy(c: np.ndarray, levels: int) -> float:
-    """Energy of the detail coefficients on the first and last two rows and columns of each subband."""
+def _border_energy(c: np.ndarray, levels: int, level: int) -> float:
+    """Energy of the details of ``level`` on the first and last two rows and columns of each subband."""
     total = 0.0
-    for _, _, where in subband_slices(c.shape, levels):
+    for _, _, where in (s for s in subband_slices(c.shape, levels) if s[0] == level):
         band = c[where]
         inside = np.zeros(band.shape, bool)
         inside[2:-2, 2:-2] = True
@@ -127,17 +127,18 @@ def _border_energy(c: np.ndarray, levels: int) -> float:
     return total
 
 
-@pytest.mark.parametrize("levels", [1, 2, 3])
-def test_spherical_extension_shrinks_the_details_at_the_border(levels):
+def test_spherical_extension_shrinks_the_details_at_the_border():
     # A smooth function of the sphere point is continuous across the glued edges of the
-    # octahedral image; the symmetric extension folds it the wrong way there. (The map itself
-    # has a kink across the edges, which no extension removes: about a quarter less energy.)
+    # octahedral image; the symmetric extension folds it the wrong way there. The map itself
+    # has a kink across the edges, which no extension removes: the coarser levels, whose
+    # extension interpolates over the edge, gain less than the finest one.
     f = _smooth_on_the_sphere(128)
-    symmetric = wavedec(f, "cdf97", levels, "symmetric")
-    spherical = wavedec(f, "cdf97", levels, "spherical")
-    assert _border_energy(spherical, levels) < 0.8 * _border_energy(symmetric, levels)
+    symmetric = wavedec(f, "cdf97", 3, "symmetric")
+    spherical = wavedec(f, "cdf97", 3, "spherical")
+    for level, most in ((1, 0.25), (2, 0.8), (3, 0.8)):
+        assert _border_energy(spherical, 3, level) < most * _border_energy(symmetric, 3, level)
     # Away from the border the finest details do not depend on the extension.
-    finest = subband_slices(f.shape, levels)[-1][2]
+    finest = subband_slices(f.shape, 3)[-1][2]
     np.testing.assert_allclose(spherical[finest][8:-8, 8:-8], symmetric[finest][8:-8, 8:-8], atol=1e-12)
 
 

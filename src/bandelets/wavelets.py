@@ -141,7 +141,8 @@ def _spherical(side: int, spacing: int, lines: list[tuple[int, int, int]]):
     level whose samples lie ``spacing`` pixels apart along the lifting axis, the sample a
     lifting step needs past the end (``s`` at pixel ``side``) or before the start (``d`` at
     pixel ``-spacing``) is interpolated linearly between the channel's last (first) sample and
-    the fold of that sample, which lies ``2 spacing - 1`` (``1``) pixels beyond the edge.
+    the fold of that sample, which lies ``2 spacing - 1`` (``1``) pixels beyond the edge; at the
+    finest level it is extrapolated from the folds of the last (first) two samples instead.
     The fold belongs to the line mirrored along the edge (pixel ``side - 1 - p`` for a line at
     pixel ``p``); ``lines`` lists the lines (the first axis) as runs ``(first pixel, spacing,
     count)``, and each line reads its mirror by linear interpolation within its own run.
@@ -163,8 +164,15 @@ def _spherical(side: int, spacing: int, lines: list[tuple[int, int, int]]):
         return (1.0 - weight) * v[first] + weight * v[second]
 
     def extend(s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        # Convex weights: a far-side extrapolation shrinks the border details of smooth data
-        # more, but amplifies the quantization error at the border and loses on meshes.
+        if h == 1 and s.shape[1] > 1:
+            # The finest level continues the fold's far side from its two nearest samples
+            # (at 1 and 3 pixels): the octahedral map has a kink across the edge, which
+            # interpolating over the edge would carry into the details.
+            after = 1.5 * folded(s[:, -1:]) - 0.5 * folded(s[:, -2:-1])
+            before = 1.5 * folded(d[:, :1]) - 0.5 * folded(d[:, 1:2])
+            return after, before
+        # Coarser levels interpolate over the edge, with convex weights: extrapolating there
+        # amplifies the quantization error at the border and loses on meshes.
         after = ((2 * h - 1) * s[:, -1:] + 2 * h * folded(s[:, -1:])) / (4 * h - 1)
         before = (d[:, :1] + 2 * h * folded(d[:, :1])) / (2 * h + 1)
         return after, before
