@@ -5,9 +5,12 @@ parameterization and the N x N geometry image (time and area distortion), the PS
 geometry-image mesh against the original (remeshing alone), then for each transform and
 target bits per original vertex a real .bdl file (bytes -> bits per vertex), its decoded
 mesh and its Hausdorff PSNR against the geometry-image mesh (compression alone) and against
-the original, and the BD-PSNR of bandelets over wavelets.
+the original, and the BD-PSNR of bandelets over wavelets. ``--variants`` compares coder options
+(:data:`VARIANTS`), each also against the plain wavelet coder (no local frames, symmetric
+extension).
 
     python benchmarks/rd_meshes.py [fandisk.off bunny.off ...] [--size 256] [--bpv 2,4,8,16]
+        [--variants default,plain]
 """
 
 from __future__ import annotations
@@ -24,6 +27,16 @@ from bandelets.surfaces import codec, metrics
 from bandelets.surfaces.geometry_image import mesh_from_image
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
+#: Options of encode_mesh compared by --variants ("default": its defaults).
+VARIANTS = {
+    "default": {},
+    "no-frames": {"frames": False},
+    "symmetric": {"extension": "symmetric"},
+    "plain": {"frames": False, "extension": "symmetric"},
+    "weight1": {"normal_weight": 1.0},
+    "weight3": {"normal_weight": 3.0},
+    "weight4": {"normal_weight": 4.0},
+}
 
 
 def main() -> None:
@@ -31,7 +44,11 @@ def main() -> None:
     parser.add_argument("meshes", nargs="*", default=["fandisk.off", "bunny.off"])
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--bpv", default="2,4,8,16")
+    parser.add_argument("--variants", default="default", help=f"comma-separated, of {', '.join(VARIANTS)}")
     args = parser.parse_args()
+    variants = args.variants.split(",")
+    if not set(variants) <= set(VARIANTS):
+        sys.exit(f"unknown variant in {args.variants}; choose from {', '.join(VARIANTS)}")
     if not MESHES.is_dir():
         sys.exit(f"{MESHES} is absent: this benchmark needs the shared test meshes")
     for name in args.meshes:
@@ -47,24 +64,31 @@ def main() -> None:
         )
         print(f"  geometry-image mesh vs original: {metrics.hausdorff_psnr(mesh, remeshed):.2f} dB")
         curves = {}
-        for transform in ("bandelet", "wavelet"):
+        for variant, transform in ((v, t) for v in variants for t in ("bandelet", "wavelet")):
             for bpv in (float(b) for b in args.bpv.split(",")):
                 data = codec.encode_mesh(
-                    mesh, image=image.positions, bits_per_vertex=bpv, transform=transform
+                    mesh, image=image.positions, bits_per_vertex=bpv, transform=transform, **VARIANTS[variant]
                 )
                 decoded = codec.decode_mesh(data)
                 real = 8 * len(data) / len(mesh.vertices)
                 alone = metrics.hausdorff_psnr(remeshed, decoded)
                 total = metrics.hausdorff_psnr(mesh, decoded)
-                curves.setdefault(transform, []).append((real, alone))
+                curves.setdefault((variant, transform), []).append((real, alone))
                 print(
-                    f"  {transform:8s} target {bpv:5g} b/v: {len(data):7d} bytes = {real:6.2f} b/v, "
-                    f"PSNR vs geometry image {alone:6.2f} dB, vs original {total:6.2f} dB"
+                    f"  {variant:9s} {transform:8s} target {bpv:5g} b/v: {len(data):7d} bytes = "
+                    f"{real:6.2f} b/v, PSNR vs geometry image {alone:6.2f} dB, vs original {total:6.2f} dB"
                 )
-        b, w = np.array(curves["bandelet"]), np.array(curves["wavelet"])
-        if len(b) >= 4:
+        if len(args.bpv.split(",")) < 4:
+            continue
+        for variant in variants:
+            b, w = np.array(curves[variant, "bandelet"]), np.array(curves[variant, "wavelet"])
             gain = bd_psnr(b[:, 0], b[:, 1], w[:, 0], w[:, 1])
-            print(f"  BD-PSNR of bandelets over wavelets (vs geometry image): {gain:+.2f} dB")
+            print(f"  {variant}: BD-PSNR of bandelets over wavelets (vs geometry image): {gain:+.2f} dB")
+            if "plain" in variants:
+                p = np.array(curves["plain", "wavelet"])
+                for transform, c in (("bandelet", b), ("wavelet", w)):
+                    gain = bd_psnr(c[:, 0], c[:, 1], p[:, 0], p[:, 1])
+                    print(f"  {variant}: BD-PSNR of {transform}s over plain wavelets: {gain:+.2f} dB")
 
 
 if __name__ == "__main__":

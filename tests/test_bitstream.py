@@ -15,6 +15,7 @@ import bandelets
 from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, pack, unpack
 
 HEADER_SIZE = 40  # fixed fields, before the streams
+GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields
 
 
 def _with_crc(body: bytes) -> bytes:
@@ -55,6 +56,9 @@ def test_format_error_is_a_value_error():
         Header(24, 40, 1, "image", "bandelet", "cdf97", 2, 0.08, 0, "alpert2"),
         Header(16384, 3, 3, "geometry-image", "wavelet", "db8", 6, 1e-9, 16, "haar"),
         Header(1, 2, 3, "normal-map", "bandelet", "haar", 1, 12.5, 8, "alpert2"),
+        Header(
+            64, 64, 3, "geometry-image", "bandelet", "cdf97", 6, 0.01, 0, "alpert2", "spherical", True, 2.5
+        ),
     ],
 )
 def test_header_round_trip(header):
@@ -62,7 +66,8 @@ def test_header_round_trip(header):
     data = pack(header, streams)
     assert data[:4] == MAGIC
     assert data[4] == FORMAT_VERSION
-    assert len(data) == HEADER_SIZE + sum(map(len, streams)) + 4
+    extra = GEOMETRY_SIZE if header.kind == "geometry-image" else 0
+    assert len(data) == HEADER_SIZE + extra + sum(map(len, streams)) + 4
     got, got_streams = unpack(data)
     assert got == header
     assert got_streams == streams
@@ -221,3 +226,47 @@ def test_huge_threshold_does_not_crash_the_decoder(tmp_path):
     )
     assert done.returncode == 0, f"decoder process died with status {done.returncode}"
     assert done.stdout.startswith(("FormatError", "decoded (64, 64)"))
+
+
+@pytest.fixture(scope="module")
+def geometry_file():
+    """A small spherical geometry image coded with local frames and the spherical extension."""
+    from bandelets.surfaces import octahedral
+
+    p = octahedral.square_to_sphere(octahedral.grid(16))
+    return bandelets.encode(p, threshold=0.01, kind="geometry-image", frames=True, extension="spherical")
+
+
+def test_geometry_options_are_read_back(geometry_file):
+    header, _ = unpack(geometry_file)
+    assert (header.extension, header.frames, header.normal_weight) == ("spherical", True, 2.0)
+
+
+@pytest.mark.parametrize(
+    ("offset", "fmt", "value", "words"),
+    [
+        (HEADER_SIZE, "<B", 2, "extension code"),
+        (HEADER_SIZE + 1, "<B", 2, "frames flag"),
+        (HEADER_SIZE + 2, "<d", 0.0, "normal weight"),
+        (HEADER_SIZE + 2, "<d", 65.0, "normal weight"),
+        (HEADER_SIZE + 2, "<d", float("nan"), "normal weight"),
+        (HEADER_SIZE + 2, "<d", float("-inf"), "normal weight"),
+        (7, "<B", 1, "spherical extension"),  # haar
+        (16, "<I", 8, "spherical extension"),  # not square
+        (8, "<B", 5, "spherical extension"),  # 16 is not a multiple of 2**5
+    ],
+)
+def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, value, words):
+    with pytest.raises(FormatError, match=words):
+        bandelets.decode(_patched(geometry_file, offset, fmt, value))
+
+
+def test_normal_weight_without_frames_is_a_format_error(geometry_file):
+    with pytest.raises(FormatError, match="without local frames"):
+        bandelets.decode(_patched(geometry_file, HEADER_SIZE + 1, "<B", 0))
+
+
+def test_geometry_file_truncated_in_its_options(geometry_file):
+    for end in range(HEADER_SIZE, HEADER_SIZE + GEOMETRY_SIZE + 1):
+        with pytest.raises(FormatError):
+            bandelets.decode(_with_crc(geometry_file[:end]))

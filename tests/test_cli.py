@@ -376,3 +376,4 @@ def test_the_command_line_offers_exactly_the_formats_choices():
     from bandelets import bitstream, cli
 
     assert cli.KINDS == bitstream.KINDS and cli.TRANSFORMS == bitstream.TRANSFORMS
+    assert cli.EXTENSIONS == bitstream.EXTENSIONS

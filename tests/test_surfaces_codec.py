@@ -1,5 +1,6 @@
 """Geometry images, the glued mesh, Hausdorff PSNR, mesh coding and the mesh commands."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,7 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("pymeshlab")
 
+from bandelets.bitstream import unpack  # noqa: E402
 from bandelets.cli import main  # noqa: E402
 from bandelets.surfaces import octahedral  # noqa: E402
 from bandelets.surfaces.checks import check_genus0  # noqa: E402
@@ -55,6 +57,8 @@ def test_encode_decode_mesh_is_closed_and_close():
     image = make_geometry_image(mesh, 32).positions
     data = encode_mesh(mesh, image=image, n_bytes=1500)
     assert len(data) <= 1500
+    header, _ = unpack(data)  # the defaults: local frames, normal weight 2, spherical extension
+    assert (header.frames, header.normal_weight, header.extension) == (True, 2.0, "spherical")
     decoded = decode_mesh(data)
     check_genus0(decoded.vertices, decoded.faces)
     assert decoded.is_watertight and decoded.volume > 0
@@ -73,8 +77,15 @@ def test_mesh_commands(tmp_path, capsys):
     if not KNIGHT.is_file():
         pytest.skip(f"{KNIGHT} is absent: the real test meshes live beside the project, not in it")
     bdl, obj = tmp_path / "k.bdl", tmp_path / "k.obj"
-    assert main(["mesh-encode", str(KNIGHT), str(bdl), "--size", "32", "--bits-per-vertex", "16"]) == 0
+    options = ["--no-frames", "--extension", "symmetric"]
+    assert (
+        main(["mesh-encode", str(KNIGHT), str(bdl), "--size", "32", "--bits-per-vertex", "16", *options]) == 0
+    )
     assert bdl.stat().st_size <= 16 * 502 / 8
+    capsys.readouterr()
+    assert main(["info", str(bdl)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["frames"], info["normal_weight"], info["extension"]) == (False, 1.0, "symmetric")
     assert main(["mesh-decode", str(bdl), str(obj)]) == 0
     decoded = trimesh.load(obj, force="mesh", process=False)
     assert len(decoded.vertices) == 32 * 32 and decoded.is_watertight
@@ -89,6 +100,8 @@ def test_mesh_command_errors(tmp_path, capsys):
     assert main(["mesh-encode", str(torus), str(tmp_path / "t.bdl")]) == 2
     assert "genus 1" in capsys.readouterr().err
     assert not (tmp_path / "t.bdl").exists()
+    assert main(["mesh-encode", str(torus), str(tmp_path / "t.bdl"), "--normal-weight", "100"]) == 2
+    assert "normal_weight must be from 1/64 to 64" in capsys.readouterr().err
     assert main(["mesh-decode", str(tmp_path / "missing.bdl"), str(tmp_path / "x.stl")]) == 2
     assert main(["geometry-image", str(torus), str(tmp_path / "t.png")]) == 2
     assert "unsupported output format" in capsys.readouterr().err

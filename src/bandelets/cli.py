@@ -22,6 +22,7 @@ __all__ = ["main"]
 # tests/test_cli.py checks they agree.
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
+EXTENSIONS = ("symmetric", "spherical")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -120,6 +121,22 @@ def _build_parser() -> argparse.ArgumentParser:
     target.add_argument("--bits-per-vertex", type=float, help="bits per vertex of the input mesh")
     target.add_argument("--bytes", type=int, help="size of the whole file")
     p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
+    p.add_argument(
+        "--no-frames", action="store_true", help="code the positions as they are, not in local frames"
+    )
+    p.add_argument(
+        "--normal-weight",
+        type=float,
+        default=2.0,
+        metavar="W",
+        help="precision of the normal component over the tangential ones in local frames (default 2)",
+    )
+    p.add_argument(
+        "--extension",
+        choices=EXTENSIONS,
+        default="spherical",
+        help="wavelet boundary extension (default spherical: the image's edges as glued on the sphere)",
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser("mesh-decode", help="rebuild the closed mesh of a geometry-image .bdl file")
@@ -226,6 +243,12 @@ def _info(args) -> None:
         },
         "format_version": FORMAT_VERSION,
     }
+    if header.kind == "geometry-image":
+        info |= {
+            "extension": header.extension,
+            "frames": header.frames,
+            "normal_weight": header.normal_weight,
+        }
     print(json.dumps(info))
 
 
@@ -311,6 +334,9 @@ def _mesh_encode(args) -> None:
         bits_per_vertex=args.bits_per_vertex,
         n_bytes=args.bytes,
         transform=args.transform,
+        frames=not args.no_frames,
+        normal_weight=args.normal_weight,
+        extension=args.extension,
     )
     write_atomic(args.output, data)
 

@@ -13,12 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import entropy, metrics, ratecontrol
+from . import entropy, frames, metrics, ratecontrol
 from .bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, debandeletize_bins
 from .bitstream import (
     HEADER_BYTES,
     KINDS,
     MAX_MEMORY,
+    MAX_NORMAL_WEIGHT,
+    MIN_NORMAL_WEIGHT,
     TRANSFORMS,
     FormatError,
     Header,
@@ -33,7 +35,7 @@ from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .quantize import RECONSTRUCTION, dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
-from .wavelets import WAVELETS, max_levels, padded_shape, subband_slices, wavedec, waverec
+from .wavelets import WAVELETS, check_extension, max_levels, padded_shape, subband_slices, wavedec, waverec
 
 __all__ = ["Bandelets", "forward", "inverse", "encode_at_threshold", "decode", "check_image"]
 
@@ -75,14 +77,23 @@ def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
 
 
 def _best_trees(
-    coefficients: list[np.ndarray], levels: int, threshold: float, transform: str, transform_1d: str
+    coefficients: list[np.ndarray],
+    levels: int,
+    threshold: float,
+    transform: str,
+    transform_1d: str,
+    before=None,
 ) -> list:
     """Best quadtree and directions of every detail subband (paper steps (3) to (8), (10)).
 
     ``coefficients`` holds the wavelet coefficients of every channel; they share one geometry.
+    ``before(index, trees)``, if given, is called before subband ``index`` is read, with the
+    trees of the coarser subbands (it may change the coefficients not read yet).
     """
     trees = []
     for index, (_, orientation, where) in enumerate(subband_slices(coefficients[0].shape, levels)):
+        if before is not None:
+            before(index, trees)
         subbands = np.stack([c[where] for c in coefficients])
         root = root_width(subbands.shape[1:])
         if transform == "wavelet" or root == 0:
@@ -316,6 +327,26 @@ def _check_options(threshold: float, transform: str, wavelet: str, transform_1d:
         raise ValueError(f"threshold must be a positive number, got {threshold}")
 
 
+def check_geometry_options(normal_weight: float, extension: str) -> None:
+    """``ValueError`` unless ``normal_weight`` and ``extension`` are usable for geometry images."""
+    if not (np.isfinite(normal_weight) and MIN_NORMAL_WEIGHT <= normal_weight <= MAX_NORMAL_WEIGHT):
+        raise ValueError(f"normal_weight must be from 1/64 to 64, got {normal_weight}")
+    check_extension((2, 2), "cdf97", 1, extension)
+
+
+def _geometry_options(
+    kind: str, shape: tuple[int, int], wavelet: str, frames: bool, weight: float, extension: str
+) -> dict:
+    """The geometry-image fields of the header (``{}`` for other kinds); ``ValueError`` if unusable."""
+    if kind != "geometry-image":
+        if frames or extension != "symmetric":
+            raise ValueError("local frames and the spherical extension apply to geometry images only")
+        return {}
+    check_geometry_options(weight, extension)
+    check_extension(shape, wavelet, 1, extension)  # the encoder then picks levels that fit
+    return {"extension": extension, "frames": bool(frames), "normal_weight": float(weight) if frames else 1.0}
+
+
 @dataclass(frozen=True)
 class Encoded:
     """A .bdl file and what the encoder knows about it."""
@@ -332,20 +363,29 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     done once, the basis search and the coding once per threshold.
     """
     threshold = header.threshold
-    trees = _best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d)
+    before = None
+    if header.frames:
+        coefficients, before = _local_frames(coefficients, header)
+    trees = _best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
     bandelets = [
         _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients
     ]
     quantized = [quantize(b, threshold) for b in bandelets]
     # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
     # its context, then the bins between 0 and +-1 are chosen again and the image coded again.
-    _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
-    approximation = approximation_plan(bandelets[0].shape, header.levels).order
-    for b, q, bits in zip(bandelets, quantized, spent, strict=True):
-        bits[approximation] = 0.0  # coded as a prediction residual: left alone
-        _optimise_bins(b, q, bits.reshape(q.shape), threshold)
+    # Not with local frames: the frames of each level were built from the coarser levels as
+    # Q_T left them, and the decoder must rebuild exactly those.
+    if not header.frames:
+        _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
+        approximation = approximation_plan(bandelets[0].shape, header.levels).order
+        for b, q, bits in zip(bandelets, quantized, spent, strict=True):
+            bits[approximation] = 0.0  # coded as a prediction residual: left alone
+            _optimise_bins(b, q, bits.reshape(q.shape), threshold)
+    # The weighted normal component's error is the weight times the error it makes.
+    scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
     sse = sum(
-        float(np.sum((b - dequantize(q, threshold)) ** 2)) for b, q in zip(bandelets, quantized, strict=True)
+        float(np.sum((b - dequantize(q, threshold)) ** 2)) / scale**2
+        for b, q, scale in zip(bandelets, quantized, scales, strict=True)
     )
     splits, dirs, coeffs = coders = new_coders()
     code_image(coders, header, trees, [q.ravel() for q in quantized])
@@ -398,9 +438,49 @@ def _optimise_bins(values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshol
     q[promote] = np.sign(values[promote]).astype(q.dtype)
 
 
-def wavelet_coefficients(x: np.ndarray, wavelet: str, levels: int) -> list[np.ndarray]:
+def _local_frames(coefficients: list[np.ndarray], header: Header):
+    """The coefficients to turn into local frames, and the ``before`` hook of :func:`_best_trees`
+    that turns each level just before the basis search reaches it.
+
+    The frames of a level come from the approximation and the coarser levels exactly as the
+    decoder will decode them (:func:`bandelets.frames.to_global`): quantized with the trees
+    already chosen, dequantized and turned back.
+    """
+    t, levels, t1d = header.threshold, header.levels, header.transform_1d
+    args = (header.wavelet, levels, header.extension)
+    shape = coefficients[0].shape
+    h, w = shape[0] >> levels, shape[1] >> levels
+    local = [c.copy() for c in coefficients]
+    decoded = [np.zeros(shape) for _ in coefficients]  # what the decoder has so far, global frame
+    for c, d in zip(coefficients, decoded, strict=True):
+        d[:h, :w] = dequantize(quantize(c[:h, :w], t), t)
+    slices = subband_slices(shape, levels)
+    turned = []  # the frames of the level turned last
+
+    def before(index: int, trees: list) -> None:
+        if index % 3:
+            return
+        if turned:  # decode the level just searched, as the decoder will
+            for i in range(index - 3, index):
+                where = slices[i][2]
+                for c, d in zip(local, decoded, strict=True):
+                    q = quantize(bandeletize(c[where], trees[i], t1d), t)
+                    d[where] = debandeletize(dequantize(q, t), trees[i], t1d)
+            frames.rotate(
+                decoded, turned[-1], slices[index - 1][0], levels, header.normal_weight, local=False
+            )
+        level = slices[index][0]
+        turned[:] = [frames.level_frames(decoded, level, *args)]
+        frames.rotate(local, turned[-1], level, levels, header.normal_weight, local=True)
+
+    return local, before
+
+
+def wavelet_coefficients(
+    x: np.ndarray, wavelet: str, levels: int, extension: str = "symmetric"
+) -> list[np.ndarray]:
     """Padded, normalised wavelet coefficients of every channel of ``x`` (H, W, C)."""
-    return [wavedec(_pad(x[..., k], levels), wavelet, levels) for k in range(x.shape[2])]
+    return [wavedec(_pad(x[..., k], levels), wavelet, levels, extension) for k in range(x.shape[2])]
 
 
 def decode(data: bytes, *, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
@@ -443,19 +523,21 @@ def decode_parsed(
             coder.check()
     except entropy.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
-    channels = [
-        inverse(
-            Bandelets(
-                dequantize(q.reshape(shape), header.threshold),
-                trees,
-                (header.height, header.width),
-                header.wavelet,
-                header.levels,
-                header.threshold,
-                header.transform_1d,
-            )
+    coefficients = [
+        _apply_trees(
+            dequantize(q.reshape(shape), header.threshold),
+            header.levels,
+            trees,
+            debandeletize,
+            header.transform_1d,
         )
         for q in quantized
+    ]
+    if header.frames:
+        frames.to_global(coefficients, header.wavelet, header.levels, header.extension, header.normal_weight)
+    channels = [
+        waverec(c, header.wavelet, header.levels, header.extension)[: header.height, : header.width]
+        for c in coefficients
     ]
     out = np.stack(channels, axis=-1)
     if not np.all(np.isfinite(out)):
@@ -484,6 +566,9 @@ def encode(
     wavelet: str = "cdf97",
     transform_1d: str = "alpert2",
     depth: int = 0,
+    frames: bool = False,
+    normal_weight: float = 2.0,
+    extension: str = "symmetric",
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
 ) -> bytes:
@@ -509,6 +594,16 @@ def encode(
         1D transform along the directions.
     depth : {0, 8, 16}
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
+    frames : bool
+        Geometry images only: code the detail coefficients of each level in local frames
+        (normal, tangents) estimated from the decoded coarser levels (:mod:`bandelets.frames`).
+    normal_weight : float
+        With ``frames``: precision given to the normal component over the tangential ones,
+        from 1/64 to 64.
+    extension : {"symmetric", "spherical"}
+        Geometry images only: boundary extension of the wavelet; ``"spherical"`` for an
+        octahedral spherical geometry image (square, even side: each edge is glued to itself
+        reversed, see :mod:`bandelets.surfaces.octahedral`).
     progress : bool
         Progress bar during rate control.
     max_memory : int
@@ -528,6 +623,9 @@ def encode(
         wavelet=wavelet,
         transform_1d=transform_1d,
         depth=depth,
+        frames=frames,
+        normal_weight=normal_weight,
+        extension=extension,
         progress=progress,
         max_memory=max_memory,
     ).data
@@ -544,6 +642,9 @@ def encode_with_stats(
     wavelet="cdf97",
     transform_1d="alpert2",
     depth=0,
+    frames=False,
+    normal_weight=2.0,
+    extension="symmetric",
     progress=False,
     max_memory=MAX_MEMORY,
 ) -> Encoded:
@@ -558,6 +659,9 @@ def encode_with_stats(
             kind=kind,
             transform_1d=transform_1d,
             depth=depth,
+            frames=frames,
+            normal_weight=normal_weight,
+            extension=extension,
             progress=progress,
             max_memory=max_memory,
         )
@@ -574,18 +678,32 @@ def encode_with_stats(
         raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {choices}")
     _check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
     levels = max_levels(x.shape[:2])
+    geometry = _geometry_options(kind, x.shape[:2], wavelet, frames, normal_weight, extension)
+    if extension == "spherical":  # no padding: the fold must stay on the image's border
+        while levels > 1 and x.shape[0] % (1 << levels):
+            levels -= 1
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
-    coefficients = wavelet_coefficients(coded, wavelet, levels)
+    coefficients = wavelet_coefficients(coded, wavelet, levels, extension)
 
     def encode_at(t: float) -> Encoded:
         header = Header(
-            x.shape[0], x.shape[1], coded.shape[2], kind, transform, wavelet, levels, t, depth, transform_1d
+            x.shape[0],
+            x.shape[1],
+            coded.shape[2],
+            kind,
+            transform,
+            wavelet,
+            levels,
+            t,
+            depth,
+            transform_1d,
+            **geometry,
         )
         return encode_at_threshold(coefficients, header)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
-    t_max = 2.0 * float(magnitudes.max()) + 1e-300
+    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
     if threshold is not None:
         return encode_at(float(threshold))
     if bpp is not None:
@@ -626,6 +744,8 @@ def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **option
     For a rate target, the one whose decoded image has the higher PSNR; for a quality target
     the smaller file; at a fixed threshold the smaller ``error + LAMBDA T**2 bits``.
     """
+    # The spherical extension exists for CDF 9/7 only.
+    candidates = AUTO_CANDIDATES if options.get("extension", "symmetric") == "symmetric" else ("cdf97",)
     files = [
         encode_with_stats(
             array,
@@ -637,7 +757,7 @@ def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **option
             max_memory=max_memory,
             **options,
         )
-        for w in AUTO_CANDIDATES
+        for w in candidates
     ]
     if psnr is not None:
         return min(files, key=lambda f: len(f.data))

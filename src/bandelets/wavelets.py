@@ -3,10 +3,11 @@
 Two families are offered:
 
 * ``"cdf97"`` (default): the biorthogonal Cohen-Daubechies-Feauveau 9/7 wavelet of JPEG2000,
-  computed by lifting with whole-sample symmetric extension. PyWavelets has this filter
-  ("bior4.4") but its symmetric mode is not critically sampled (each level grows the
-  subbands by the filter length), which would break the one-coefficient-per-pixel layout
-  the bandelet quadtree needs; so this lifting is written here.
+  computed by lifting with whole-sample symmetric extension, or with the "spherical"
+  extension of Praun and Hoppe for octahedral geometry images (each edge glued to itself
+  reversed). PyWavelets has this filter ("bior4.4") but its symmetric mode is not critically
+  sampled (each level grows the subbands by the filter length), which would break the
+  one-coefficient-per-pixel layout the bandelet quadtree needs; so this lifting is written here.
 * any orthogonal Daubechies-family name PyWavelets knows (``"haar"``, ``"db2"``, ``"db4"``, ...),
   through :func:`pywt.wavedec2` with periodic extension, the only critically sampled
   extension under which these filters stay orthogonal.
@@ -30,7 +31,9 @@ import numpy as np
 import pywt
 
 __all__ = [
+    "EXTENSIONS",
     "WAVELETS",
+    "check_extension",
     "subband_slices",
     "wavedec",
     "waverec",
@@ -38,6 +41,9 @@ __all__ = [
     "MAX_LEVELS",
     "padded_shape",
 ]
+
+#: Boundary extensions of ``cdf97`` that can be stored in a .bdl header, by code. Append only.
+EXTENSIONS = ("symmetric", "spherical")
 
 #: Wavelets that can be stored in a .bdl header, by code. Append only: the code is the format.
 WAVELETS = ("cdf97", "haar", "db2", "db4", "db6", "db8")
@@ -91,53 +97,123 @@ def subband_slices(shape: tuple[int, int], levels: int) -> list[tuple[int, int, 
     return out
 
 
-def _lift_forward(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One level of CDF 9/7 analysis along the last axis (even length)."""
+def _symmetric(s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whole-sample symmetric extension: ``s[n]`` past the end is ``s[n-1]``, ``d[-1]`` is ``d[0]``."""
+    return s[..., -1:], d[..., :1]
+
+
+def _lift_forward(x: np.ndarray, extend=_symmetric) -> tuple[np.ndarray, np.ndarray]:
+    """One level of CDF 9/7 analysis along the last axis (even length).
+
+    ``extend(s, d)`` gives the sample of ``s`` past its end and the one of ``d`` before its
+    start, shape ``(..., 1)``; each reads only the channel it extends, so that every lifting
+    step stays exactly invertible.
+    """
     s = x[..., 0::2].copy()
     d = x[..., 1::2].copy()
-    # Whole-sample symmetric extension: s[n+1] past the end is s[n], d[-1] is d[0].
-    d += _ALPHA * (s + np.concatenate([s[..., 1:], s[..., -1:]], axis=-1))
-    s += _BETA * (d + np.concatenate([d[..., :1], d[..., :-1]], axis=-1))
-    d += _GAMMA * (s + np.concatenate([s[..., 1:], s[..., -1:]], axis=-1))
-    s += _DELTA * (d + np.concatenate([d[..., :1], d[..., :-1]], axis=-1))
+    d += _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s += _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d += _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s += _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
     return s * _ZETA, d / _ZETA
 
 
-def _lift_inverse(s: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Exact inverse of :func:`_lift_forward`."""
+def _lift_inverse(s: np.ndarray, d: np.ndarray, extend=_symmetric) -> np.ndarray:
+    """Exact inverse of :func:`_lift_forward` (with the same ``extend``)."""
     s = s / _ZETA
     d = d * _ZETA
-    s -= _DELTA * (d + np.concatenate([d[..., :1], d[..., :-1]], axis=-1))
-    d -= _GAMMA * (s + np.concatenate([s[..., 1:], s[..., -1:]], axis=-1))
-    s -= _BETA * (d + np.concatenate([d[..., :1], d[..., :-1]], axis=-1))
-    d -= _ALPHA * (s + np.concatenate([s[..., 1:], s[..., -1:]], axis=-1))
+    s -= _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d -= _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s -= _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d -= _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
     x = np.empty(s.shape[:-1] + (2 * s.shape[-1],))
     x[..., 0::2] = s
     x[..., 1::2] = d
     return x
 
 
-def _cdf97_dec(x: np.ndarray, levels: int) -> np.ndarray:
+def _spherical(side: int, spacing: int, lines: list[tuple[int, int, int]]):
+    """The extension of one lifting pass over a level of an octahedral geometry image.
+
+    The image (``side`` x ``side`` pixels, centres at integer positions) is glued across each
+    edge to itself turned by half a turn about the edge's midpoint: the sample ``k`` pixels
+    beyond an edge is the one ``k - 1`` inside it, at the mirrored place along the edge. At a
+    level whose samples lie ``spacing`` pixels apart along the lifting axis, the sample a
+    lifting step needs past the end (``s`` at pixel ``side``) or before the start (``d`` at
+    pixel ``-spacing``) is interpolated linearly between the channel's last (first) sample and
+    the fold of that sample, which lies ``2 spacing - 1`` (``1``) pixels beyond the edge; at the
+    finest level it is extrapolated from the folds of the last (first) two samples instead.
+    The fold belongs to the line mirrored along the edge (pixel ``side - 1 - p`` for a line at
+    pixel ``p``); ``lines`` lists the lines (the first axis) as runs ``(first pixel, spacing,
+    count)``, and each line reads its mirror by linear interpolation within its own run.
+    """
+    first, second, weight = [], [], []
+    start = 0
+    for offset, step, count in lines:
+        mirror = side - 1 - 2 * offset - step * np.arange(count)  # pixels past the run's start
+        low = np.clip(mirror // step, 0, count - 1)
+        first.append(start + low)
+        second.append(start + np.clip(mirror // step + 1, 0, count - 1))
+        weight.append((mirror - step * low).clip(0, step) / step)
+        start += count
+    first, second = np.concatenate(first), np.concatenate(second)
+    weight = np.concatenate(weight)[:, None]
+    h = spacing
+
+    def folded(v: np.ndarray) -> np.ndarray:
+        return (1.0 - weight) * v[first] + weight * v[second]
+
+    def extend(s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if h == 1 and s.shape[1] > 1:
+            # The finest level continues the fold's far side from its two nearest samples
+            # (at 1 and 3 pixels): the octahedral map has a kink across the edge, which
+            # interpolating over the edge would carry into the details.
+            after = 1.5 * folded(s[:, -1:]) - 0.5 * folded(s[:, -2:-1])
+            before = 1.5 * folded(d[:, :1]) - 0.5 * folded(d[:, 1:2])
+            return after, before
+        # Coarser levels interpolate over the edge, with convex weights: extrapolating there
+        # amplifies the quantization error at the border and loses on meshes.
+        after = ((2 * h - 1) * s[:, -1:] + 2 * h * folded(s[:, -1:])) / (4 * h - 1)
+        before = (d[:, :1] + 2 * h * folded(d[:, :1])) / (2 * h + 1)
+        return after, before
+
+    return extend
+
+
+def _extensions(shape: tuple[int, int], level: int, extension: str):
+    """Extensions of the row pass and of the column pass of ``level`` (1 = finest)."""
+    if extension == "symmetric":
+        return _symmetric, _symmetric
+    side, h = shape[0], 1 << (level - 1)
+    m = side // h
+    # Row pass: the rows of the level's approximation, pixels 0, h, 2h, ... Column pass: the
+    # columns of its low half (pixels 0, 2h, ...), then of its high half (h, 3h, ...).
+    return _spherical(side, h, [(0, h, m)]), _spherical(side, h, [(0, 2 * h, m // 2), (h, 2 * h, m // 2)])
+
+
+def _cdf97_dec(x: np.ndarray, levels: int, extension: str = "symmetric") -> np.ndarray:
     out = np.array(x, dtype=np.float64, copy=True)
     h, w = out.shape
-    for _ in range(levels):
+    for level in range(1, levels + 1):
+        rows, cols = _extensions(out.shape, level, extension)
         block = out[:h, :w]
-        lo, hi = _lift_forward(block)  # along rows: columns split
+        lo, hi = _lift_forward(block, rows)  # along rows: columns split
         block = np.concatenate([lo, hi], axis=1)
-        lo, hi = _lift_forward(block.T)  # along columns: rows split
+        lo, hi = _lift_forward(block.T, cols)  # along columns: rows split
         out[:h, :w] = np.concatenate([lo, hi], axis=1).T
         h, w = h // 2, w // 2
     return out
 
 
-def _cdf97_rec(c: np.ndarray, levels: int) -> np.ndarray:
+def _cdf97_rec(c: np.ndarray, levels: int, extension: str = "symmetric") -> np.ndarray:
     out = np.array(c, dtype=np.float64, copy=True)
     height, width = out.shape
     for level in range(levels, 0, -1):
+        rows, cols = _extensions(out.shape, level, extension)
         h, w = height >> (level - 1), width >> (level - 1)
         block = out[:h, :w].T
-        block = _lift_inverse(block[:, : h // 2], block[:, h // 2 :]).T
-        out[:h, :w] = _lift_inverse(block[:, : w // 2], block[:, w // 2 :])
+        block = _lift_inverse(block[:, : h // 2], block[:, h // 2 :], cols).T
+        out[:h, :w] = _lift_inverse(block[:, : w // 2], block[:, w // 2 :], rows)
     return out
 
 
@@ -166,12 +242,23 @@ def _pywt_rec(c: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
     return pywt.waverec2(coeffs, wavelet, mode="periodization")
 
 
-def _raw_dec(x: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
-    return _cdf97_dec(x, levels) if wavelet == "cdf97" else _pywt_dec(x, wavelet, levels)
+def _raw_dec(x: np.ndarray, wavelet: str, levels: int, extension: str) -> np.ndarray:
+    return _cdf97_dec(x, levels, extension) if wavelet == "cdf97" else _pywt_dec(x, wavelet, levels)
 
 
-def _raw_rec(c: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
-    return _cdf97_rec(c, levels) if wavelet == "cdf97" else _pywt_rec(c, wavelet, levels)
+def _raw_rec(c: np.ndarray, wavelet: str, levels: int, extension: str) -> np.ndarray:
+    return _cdf97_rec(c, levels, extension) if wavelet == "cdf97" else _pywt_rec(c, wavelet, levels)
+
+
+def check_extension(shape: tuple[int, int], wavelet: str, levels: int, extension: str) -> None:
+    """``ValueError`` unless ``extension`` applies to a ``shape`` channel at ``levels``."""
+    if extension not in EXTENSIONS:
+        raise ValueError(f"unknown extension {extension!r}; choose one of {', '.join(EXTENSIONS)}")
+    if extension == "spherical" and (wavelet != "cdf97" or shape[0] != shape[1] or shape[0] % (1 << levels)):
+        raise ValueError(
+            f"the spherical extension needs the cdf97 wavelet and a square image whose side is a "
+            f"multiple of {1 << levels}, got {wavelet} and {shape[1]} x {shape[0]}"
+        )
 
 
 @cache
@@ -220,7 +307,9 @@ def _norm_map(shape: tuple[int, int], wavelet: str, levels: int) -> np.ndarray:
     return scale
 
 
-def wavedec(x: np.ndarray, wavelet: str = "cdf97", levels: int = 1) -> np.ndarray:
+def wavedec(
+    x: np.ndarray, wavelet: str = "cdf97", levels: int = 1, extension: str = "symmetric"
+) -> np.ndarray:
     """Normalised 2D wavelet transform of one channel.
 
     Parameters
@@ -231,6 +320,10 @@ def wavedec(x: np.ndarray, wavelet: str = "cdf97", levels: int = 1) -> np.ndarra
         One of :data:`WAVELETS`.
     levels : int
         Number of decomposition levels.
+    extension : {"symmetric", "spherical"}
+        How ``cdf97`` extends the channel past its border: whole-sample symmetric, or glued
+        as an octahedral geometry image (:func:`_spherical`; square, side a multiple of
+        ``2**levels``; ``cdf97`` only: the orthogonal wavelets are periodic).
 
     Returns
     -------
@@ -240,9 +333,13 @@ def wavedec(x: np.ndarray, wavelet: str = "cdf97", levels: int = 1) -> np.ndarra
     """
     if wavelet not in WAVELETS:
         raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {', '.join(WAVELETS)}")
-    return _raw_dec(x, wavelet, levels) * _norm_map(x.shape, wavelet, levels)
+    check_extension(x.shape, wavelet, levels, extension)
+    return _raw_dec(x, wavelet, levels, extension) * _norm_map(x.shape, wavelet, levels)
 
 
-def waverec(c: np.ndarray, wavelet: str = "cdf97", levels: int = 1) -> np.ndarray:
+def waverec(
+    c: np.ndarray, wavelet: str = "cdf97", levels: int = 1, extension: str = "symmetric"
+) -> np.ndarray:
     """Inverse of :func:`wavedec`: ``(H, W)`` coefficients to an ``(H, W)`` channel."""
-    return _raw_rec(c / _norm_map(c.shape, wavelet, levels), wavelet, levels)
+    check_extension(c.shape, wavelet, levels, extension)
+    return _raw_rec(c / _norm_map(c.shape, wavelet, levels), wavelet, levels, extension)

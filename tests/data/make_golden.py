@@ -58,6 +58,17 @@ GOLDEN = {
         geometry_image_32,
         {"threshold": 0.002, "kind": "geometry-image", "transform": "wavelet"},
     ),
+    "geometry32-frames.bdl": (
+        geometry_image_32,
+        {
+            "threshold": 0.002,
+            "kind": "geometry-image",
+            "transform": "bandelet",
+            "frames": True,
+            "normal_weight": 3.0,
+            "extension": "spherical",
+        },
+    ),
 }
 
 

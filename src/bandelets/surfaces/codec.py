@@ -121,6 +121,9 @@ def encode_mesh(
     bits_per_vertex: float | None = None,
     n_bytes: int | None = None,
     transform: str = "bandelet",
+    frames: bool = True,
+    normal_weight: float = 2.0,
+    extension: str = "spherical",
     image: np.ndarray | None = None,
 ) -> bytes:
     """Compress a closed genus-0 mesh into a .bdl file.
@@ -134,6 +137,9 @@ def encode_mesh(
         Target: bits per geometry-image pixel, bits per vertex of ``mesh``, or bytes of the
         whole file; the file lands within 3 % below it. Default: 1 bpp.
     transform : {"bandelet", "wavelet"}
+    frames, normal_weight, extension
+        Local frames, weight of their normal component and wavelet boundary extension
+        (:func:`bandelets.encode`); the defaults are the best measured (benchmarks/rd_meshes.py).
     image : ndarray of float, shape (size, size, 3), optional
         The geometry image of ``mesh`` if already made (:func:`make_geometry_image`).
 
@@ -147,6 +153,7 @@ def encode_mesh(
     given = [name for name, value in targets.items() if value is not None]
     if len(given) > 1:
         raise ValueError(f"give at most one target, got {', '.join(given)}")
+    codec.check_geometry_options(normal_weight, extension)  # before the slow parameterization
     if image is None:
         image = make_geometry_image(mesh, size).positions
     pixels = image.shape[0] * image.shape[1]
@@ -157,7 +164,15 @@ def encode_mesh(
         bpp = bits_per_vertex * len(mesh.vertices) / pixels
     elif n_bytes is not None:
         bpp = 8.0 * n_bytes / pixels
-    return codec.encode(image, bpp=1.0 if bpp is None else bpp, transform=transform, kind="geometry-image")
+    return codec.encode(
+        image,
+        bpp=1.0 if bpp is None else bpp,
+        transform=transform,
+        kind="geometry-image",
+        frames=frames,
+        normal_weight=normal_weight,
+        extension=extension,
+    )
 
 
 def decode_mesh(data: bytes):

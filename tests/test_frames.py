@@ -1,0 +1,152 @@
+"""Local frames of geometry images (bandelets.frames) and their use by the codec."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import bandelets
+from bandelets import frames
+from bandelets.bitstream import unpack
+from bandelets.codec import encode_with_stats
+from bandelets.surfaces import octahedral
+from bandelets.wavelets import wavedec
+
+
+def _bumpy_sphere(side: int) -> np.ndarray:
+    """Positions of a bumped sphere on the octahedral grid (a spherical geometry image)."""
+    p = octahedral.square_to_sphere(octahedral.grid(side))
+    return p * (1.0 + 0.1 * np.sin(3.0 * p[..., :1]) * p[..., 1:2])
+
+
+def _tangents(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.gradient(positions, axis=1), np.gradient(positions, axis=0)
+
+
+def _random_rotation(rng) -> np.ndarray:
+    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
+    return q * np.sign(np.diag(r))
+
+
+def test_frames_are_orthonormal_and_right_handed():
+    f = frames.frame_field(*_tangents(_bumpy_sphere(32)))
+    eye = np.einsum("...ij,...kj->...ik", f, f)
+    np.testing.assert_allclose(eye, np.broadcast_to(np.eye(3), eye.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(f), 1.0, atol=1e-12)
+
+
+def test_the_normal_of_a_plane_is_its_normal(rng):
+    rotation = _random_rotation(rng)
+    v, u = np.mgrid[0:16, 0:16].astype(np.float64)
+    plane = np.stack([u + 0.1 * v**2, v, np.zeros_like(u)], axis=-1) @ rotation.T
+    normal = frames.frame_field(*_tangents(plane))[..., 0, :]
+    np.testing.assert_allclose(np.abs(normal @ rotation[:, 2]), 1.0, atol=1e-12)
+
+
+def test_degenerate_places_get_a_fixed_frame():
+    line = np.zeros((8, 8, 3))
+    line[..., 0] = np.arange(8)[None, :]  # the rows collapse: no normal anywhere
+    fixed = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # normal z, tangents x, y
+    np.testing.assert_array_equal(frames.frame_field(*_tangents(line)), np.broadcast_to(fixed, (8, 8, 3, 3)))
+
+
+def test_a_warped_tilted_plane_has_no_normal_details(rng):
+    # Sliding points along a plane changes the position channels, never the normal component.
+    rotation = _random_rotation(rng)
+    v, u = np.mgrid[0:64, 0:64].astype(np.float64) / 64
+    warped = np.stack([u + 0.05 * np.sin(6 * v), v + 0.05 * np.cos(5 * u), np.zeros_like(u)], -1)
+    image = warped @ rotation.T + 0.3
+    levels = 3
+    coefficients = [wavedec(image[..., k], "cdf97", levels) for k in range(3)]
+    local = [c.copy() for c in coefficients]
+    for level in range(levels, 0, -1):
+        frame = frames.level_frames(coefficients, level, "cdf97", levels, "symmetric")
+        frames.rotate(local, frame, level, levels, 3.0, local=True)
+    details = np.ones(image.shape[:2], bool)
+    details[: 64 >> levels, : 64 >> levels] = False
+    tangential = np.hypot(local[1][details], local[2][details])
+    assert np.abs(local[0][details]).max() < 1e-9 * tangential.max()
+    # and the decoder's order of turning back restores every coefficient
+    frames.to_global(local, "cdf97", levels, "symmetric", 3.0)
+    for b, c in zip(local, coefficients, strict=True):
+        np.testing.assert_allclose(b, c, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("transform", ["bandelet", "wavelet"])
+@pytest.mark.parametrize("extension", ["symmetric", "spherical"])
+def test_geometry_image_with_local_frames_round_trips(transform, extension):
+    image = _bumpy_sphere(32)
+    enc = encode_with_stats(
+        image,
+        threshold=2e-3,
+        kind="geometry-image",
+        transform=transform,
+        frames=True,
+        normal_weight=2.5,
+        extension=extension,
+    )
+    header, _ = unpack(enc.data)
+    assert (header.frames, header.normal_weight, header.extension) == (True, 2.5, extension)
+    decoded = bandelets.decode(enc.data)
+    error = float(np.sum((decoded - image) ** 2))
+    # The coefficients' error is the image's (up to the non-orthogonality of cdf97).
+    assert error == pytest.approx(enc.coefficient_sse, rel=0.15)
+    assert np.abs(decoded - image).max() < 20 * 2e-3
+
+
+def test_the_weight_moves_the_error_out_of_the_normals():
+    image = _bumpy_sphere(64)
+    normals = frames.frame_field(*_tangents(image))[..., 0, :]
+    split = {}
+    for weight in (1.0, 4.0):
+        data = bandelets.encode(image, bpp=2.0, kind="geometry-image", frames=True, normal_weight=weight)
+        error = bandelets.decode(data) - image
+        along = np.einsum("...k,...k->...", error, normals)
+        split[weight] = np.sum(along**2) / np.sum(error**2)
+    assert split[4.0] < 0.5 * split[1.0]
+
+
+def test_spherical_extension_picks_levels_that_divide_the_side():
+    image = _bumpy_sphere(34)
+    header, _ = unpack(bandelets.encode(image, threshold=1e-2, kind="geometry-image", extension="spherical"))
+    assert header.levels == 1
+    decoded = bandelets.decode(
+        bandelets.encode(image, threshold=1e-4, kind="geometry-image", extension="spherical")
+    )
+    assert np.abs(decoded - image).max() < 1e-3
+
+
+@pytest.mark.parametrize(
+    ("array", "options", "words"),
+    [
+        (np.zeros((16, 16, 3)), {"kind": "normal-map", "frames": True}, "geometry images only"),
+        (np.zeros((16, 16)), {"kind": "image", "extension": "spherical"}, "geometry images only"),
+        (np.zeros((16, 32, 3)), {"kind": "geometry-image", "extension": "spherical"}, "square"),
+        (np.zeros((16, 16, 3)), {"kind": "geometry-image", "extension": "mirror"}, "unknown extension"),
+        (
+            np.zeros((16, 16, 3)),
+            {"kind": "geometry-image", "frames": True, "normal_weight": 0.0},
+            "1/64 to 64",
+        ),
+        (np.zeros((16, 16, 3)), {"kind": "geometry-image", "frames": True, "normal_weight": np.nan}, "1/64"),
+    ],
+)
+def test_bad_geometry_options_are_refused(array, options, words):
+    with pytest.raises(ValueError, match=words):
+        bandelets.encode(array, threshold=0.1, **options)
+
+
+def test_memory_estimate_covers_the_decoding_with_frames():
+    import tracemalloc
+
+    from bandelets.bitstream import decoder_memory
+
+    data = bandelets.encode(
+        _bumpy_sphere(128), bpp=2.0, kind="geometry-image", frames=True, transform="wavelet"
+    )
+    bandelets.decode(data)
+    tracemalloc.start()
+    bandelets.decode(data)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak <= decoder_memory(128, 128, 3, unpack(data)[0].levels, frames=True)
