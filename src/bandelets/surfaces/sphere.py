@@ -26,7 +26,10 @@ Three steps:
    moved to the mean of their neighbours until none is flipped.
 
 Orientation: a triangle ``(q0, q1, q2)`` on the sphere is flipped when
-``det[q0, q1, q2] <= 0``, i.e. its chord triangle does not face away from the centre.
+``det[q0, q1, q2] <= 0``, i.e. its chord triangle does not face away from the centre. It is
+computed from the edge vectors, ``q0 . ((q1 - q0) x (q2 - q0))``: the conformal start crushes
+long limbs (a screwdriver's shaft) to triangles 1e-10 across, whose determinant taken from the
+whole unit vectors is rounding noise.
 """
 
 from __future__ import annotations
@@ -175,7 +178,12 @@ def flipped(faces: np.ndarray, points: np.ndarray) -> np.ndarray:
     points : ndarray of float, shape (V, 3)
         Unit vectors.
     """
-    (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = _corners(faces, points)
+    q0, q1, q2 = _corners(faces, points)
+    # det[q0, q1, q2] = q0 . ((q1 - q0) x (q2 - q0)): the products of whole coordinates in
+    # q0 . (q1 x q2) cancel down to the triangle's size, and for the triangles that a conformal
+    # map crushes to 1e-10 across, their rounding (1e-16) outweighs the result; edge vectors
+    # keep it to relative rounding.
+    (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = q0, q1 - q0, q2 - q0
     return x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2) <= 0
 
 
@@ -229,6 +237,21 @@ def _corners(faces: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
 
 
 @njit(cache=True)
+def _chord_det(points, a, e1, e2, scale):
+    """``det G`` and ``det[q0, q1, q2]`` of a triangle from its edges ``e1 = q1 - q0``, ``e2``.
+
+    Both from the cross product ``n = e1 x e2``, as ``j0 x j1 = r00 r11 n``: the usual
+    ``g00 g11 - g01^2`` and ``q0 . (q1 x q2)`` lose all their digits to cancellation on the
+    triangles a conformal map crushes (areas down to 1e-20 and less).
+    """
+    n0 = e1[1] * e2[2] - e1[2] * e2[1]
+    n1 = e1[2] * e2[0] - e1[0] * e2[2]
+    n2 = e1[0] * e2[1] - e1[1] * e2[0]
+    det = scale * scale * (n0 * n0 + n1 * n1 + n2 * n2)
+    return det, points[a, 0] * n0 + points[a, 1] * n1 + points[a, 2] * n2
+
+
+@njit(cache=True)
 def _dirichlet_energy(faces, points, inverse, area, was_flipped):
     """Energy of the map and whether it flips a triangle that ``was_flipped`` does not.
 
@@ -237,21 +260,19 @@ def _dirichlet_energy(faces, points, inverse, area, was_flipped):
     """
     total = 0.0
     new_flip = False
+    e1 = np.empty(3)
+    e2 = np.empty(3)
     for f in range(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         r00, r01, r11 = inverse[f, 0], inverse[f, 1], inverse[f, 2]
-        g00 = g01 = g11 = orientation = 0.0
+        g00 = g11 = 0.0
         for k in range(3):
-            e1 = points[b, k] - points[a, k]
-            e2 = points[c, k] - points[a, k]
-            j0, j1 = e1 * r00, e1 * r01 + e2 * r11
+            e1[k] = points[b, k] - points[a, k]
+            e2[k] = points[c, k] - points[a, k]
+            j0, j1 = e1[k] * r00, e1[k] * r01 + e2[k] * r11
             g00 += j0 * j0
-            g01 += j0 * j1
             g11 += j1 * j1
-            # det[q0, q1, q2] = q0 . (q1 x q2)
-            k1, k2 = (k + 1) % 3, (k + 2) % 3
-            orientation += points[a, k] * (points[b, k1] * points[c, k2] - points[b, k2] * points[c, k1])
-        det = g00 * g11 - g01 * g01
+        det, orientation = _chord_det(points, a, e1, e2, r00 * r11)
         if det <= 0.0:
             return np.inf, True
         total += area[f] * (g00 + g11) * (1.0 + 1.0 / det)
@@ -266,18 +287,20 @@ def _dirichlet_gradient(faces, points, inverse, area):
     grad = np.zeros(points.shape)
     j0 = np.empty(3)
     j1 = np.empty(3)
+    e1 = np.empty(3)
+    e2 = np.empty(3)
     for f in range(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         r00, r01, r11 = inverse[f, 0], inverse[f, 1], inverse[f, 2]
         g00 = g01 = g11 = 0.0
         for k in range(3):
-            e1 = points[b, k] - points[a, k]
-            e2 = points[c, k] - points[a, k]
-            j0[k], j1[k] = e1 * r00, e1 * r01 + e2 * r11
+            e1[k] = points[b, k] - points[a, k]
+            e2[k] = points[c, k] - points[a, k]
+            j0[k], j1[k] = e1[k] * r00, e1[k] * r01 + e2[k] * r11
             g00 += j0[k] * j0[k]
             g01 += j0[k] * j1[k]
             g11 += j1[k] * j1[k]
-        det = g00 * g11 - g01 * g01
+        det = _chord_det(points, a, e1, e2, r00 * r11)[0]
         trace = g00 + g11
         # d(t + t/d)/dJ = 2 J (1 + 1/d) - 2 (t/d^2) J adj(G), adj(G) = [[g11, -g01], [-g01, g00]];
         # then back through J = E R^-1: dE = dJ R^-T.
