@@ -52,6 +52,16 @@ def test_psnr_of_a_known_displacement():
     assert hausdorff_psnr(sphere, moved, samples=20_000) == pytest.approx(expected, abs=0.05)
 
 
+def test_psnr_refuses_a_collapsed_mesh_instead_of_crashing():
+    # As Draco leaves a long thin mesh at its coarsest quantization: every vertex in two points.
+    # MeshLab's sampler dies with SIGSEGV on such a surface.
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    collapsed = sphere.copy()
+    collapsed.vertices = np.where(sphere.vertices[:, :1] > 0, 1.0, -1.0) * [1.0, 0.0, 0.0]
+    with pytest.raises(ValueError, match="no area"):
+        hausdorff_psnr(sphere, collapsed, samples=1000)
+
+
 def test_encode_decode_mesh_is_closed_and_close():
     mesh = trimesh.creation.icosphere(subdivisions=3)
     image = make_geometry_image(mesh, 32).positions

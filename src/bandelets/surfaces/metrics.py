@@ -43,9 +43,19 @@ def rms_hausdorff(a, b, samples: int = SAMPLES) -> float:
     -------
     float
         ``max(rms(a -> b), rms(b -> a))``.
+
+    Raises
+    ------
+    ValueError
+        If either mesh has zero area.
     """
     import pymeshlab
 
+    for mesh in (a, b):
+        # MeshLab's sampler crashes (SIGSEGV) on a surface of zero area, such as a mesh whose
+        # every vertex a coarse quantization merged into a few points.
+        if not float(mesh.area) > 0.0:
+            raise ValueError("a mesh has no area (every triangle degenerate): no Hausdorff distance to measure")
     meshset = pymeshlab.MeshSet()
     for mesh in (a, b):
         meshset.add_mesh(
