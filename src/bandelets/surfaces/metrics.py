@@ -55,7 +55,9 @@ def rms_hausdorff(a, b, samples: int = SAMPLES) -> float:
         # MeshLab's sampler crashes (SIGSEGV) on a surface of zero area, such as a mesh whose
         # every vertex a coarse quantization merged into a few points.
         if not float(mesh.area) > 0.0:
-            raise ValueError("a mesh has no area (every triangle degenerate): no Hausdorff distance to measure")
+            raise ValueError(
+                "a mesh has no area (every triangle degenerate): no Hausdorff distance to measure"
+            )
     meshset = pymeshlab.MeshSet()
     for mesh in (a, b):
         meshset.add_mesh(
