@@ -41,7 +41,18 @@ def test_rd_on_a_mesh_with_draco_writes_csv_png_and_real_bytes(tmp_path, capsys,
     assert status == 0, err
     with open(out / "rd.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == ["input", "codec", "target", "bytes", "bpv", "psnr", "encode_s", "decode_s"]
+    assert list(rows[0]) == [
+        "input",
+        "codec",
+        "target",
+        "bytes",
+        "bpv",
+        "psnr",
+        "encode_s",
+        "decode_s",
+        "side",
+    ]
+    assert [r["side"] for r in rows] == ["32"] * 4 + [""] * 2
     assert [(r["codec"], float(r["target"])) for r in rows] == [
         (c, t) for c in ("bandelet", "wavelet", "draco") for t in (12.0, 24.0)
     ]
@@ -57,7 +68,7 @@ def test_rd_on_a_mesh_with_draco_writes_csv_png_and_real_bytes(tmp_path, capsys,
     assert draco[1] > draco[0]  # more bytes, more bits per coordinate
     assert imagecodecs.png_decode((out / "rd.png").read_bytes()).ndim == 3
     assert "draco: DracoPy " in printed and "Draco bitstream" in printed and "bpv range" in printed
-    assert "32 x 32 geometry image" in printed and "dB against the original before coding" in printed
+    assert "geometry images against the original before coding: 32 x 32: " in printed
 
 
 def test_draco_file_decodes_to_the_mesh_it_wrote(sphere_file):
@@ -100,6 +111,6 @@ def test_mesh_rd_errors(tmp_path, capsys, sphere_file, extra, message):
 
 def test_run_refuses_images_and_meshes_together(sphere_file, tmp_path):
     mesh_source = rd.load(str(sphere_file), size=16)
-    assert isinstance(mesh_source, rd.MeshSource) and mesh_source.image.shape == (16, 16, 3)
+    assert isinstance(mesh_source, rd.MeshSource) and mesh_source.image(16).shape == (16, 16, 3)
     with pytest.raises(ValueError, match="not both"):
         rd.run([mesh_source, rd.load("sample:crease@32")], [1.0], ["bandelet"], tmp_path)

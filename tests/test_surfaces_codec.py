@@ -13,7 +13,16 @@ from bandelets.bitstream import unpack  # noqa: E402
 from bandelets.cli import main  # noqa: E402
 from bandelets.surfaces import octahedral  # noqa: E402
 from bandelets.surfaces.checks import check_genus0  # noqa: E402
-from bandelets.surfaces.codec import decode_mesh, encode_mesh, make_geometry_image  # noqa: E402
+from bandelets.surfaces.codec import (  # noqa: E402
+    AUTO_SIZES,
+    DEFAULT_SIZE,
+    MIN_AUTO_BPP,
+    auto_size,
+    decode_mesh,
+    encode_mesh,
+    make_geometry_image,
+    map_to_sphere,
+)
 from bandelets.surfaces.geometry_image import mesh_from_image, triangulation  # noqa: E402
 from bandelets.surfaces.metrics import hausdorff_psnr  # noqa: E402
 
@@ -73,6 +82,27 @@ def test_encode_decode_mesh_is_closed_and_close():
     check_genus0(decoded.vertices, decoded.faces)
     assert decoded.is_watertight and decoded.volume > 0
     assert hausdorff_psnr(mesh_from_image(image), decoded, samples=20_000) > 35
+
+
+@pytest.mark.parametrize("bits", [0, 100, 1638, 1639, 6554, 50_000, 104_858, 1e9])
+def test_auto_size_is_the_largest_side_with_enough_bits_per_pixel(bits):
+    side = auto_size(bits)
+    assert side in AUTO_SIZES
+    assert side == AUTO_SIZES[0] or bits / side**2 >= MIN_AUTO_BPP
+    larger = [n for n in AUTO_SIZES if n > side]
+    assert not larger or bits / larger[0] ** 2 < MIN_AUTO_BPP
+
+
+def test_encode_mesh_sizes_the_image_by_its_target():
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    spherical = map_to_sphere(mesh)
+    chosen = encode_mesh(mesh, n_bytes=300, spherical=spherical)
+    assert len(chosen) <= 300 and unpack(chosen)[0].width == auto_size(2400) == 128
+    assert unpack(encode_mesh(mesh, n_bytes=300, size=32, spherical=spherical))[0].width == 32
+    per_pixel = encode_mesh(mesh, bpp=0.05, spherical=spherical)
+    assert unpack(per_pixel)[0].width == DEFAULT_SIZE and len(per_pixel) <= 0.05 * DEFAULT_SIZE**2 / 8
+    with pytest.raises(ValueError, match="size 64 given with a 32 x 32 geometry image"):
+        encode_mesh(mesh, size=64, image=make_geometry_image(mesh, 32).positions)
 
 
 def test_decode_mesh_refuses_other_kinds():

@@ -103,7 +103,11 @@ def _build_parser() -> argparse.ArgumentParser:
         help="from bandelet,wavelet,jpeg2000,avif,jpegxl (default all; with --decay bandelet,wavelet); "
         "for meshes from bandelet,wavelet,draco (default all)",
     )
-    p.add_argument("--size", type=int, default=256, help="side of the geometry image of meshes (default 256)")
+    p.add_argument(
+        "--size",
+        type=int,
+        help="side of the geometry image of meshes (default: chosen for each rate, as mesh-encode does)",
+    )
     p.add_argument("--out", default="rd", help="folder for the files, rd.csv and rd.png (default rd)")
     p.add_argument("--decay", action="store_true", help="also fit the decay exponent of log MSE vs log bits")
 
@@ -115,7 +119,12 @@ def _build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("mesh-encode", help="compress a closed genus-0 mesh as a spherical geometry image")
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", help="the .bdl file to write")
-    p.add_argument("--size", type=int, default=256, help="side of the geometry image, even (default 256)")
+    p.add_argument(
+        "--size",
+        type=int,
+        help="side of the geometry image, even (default: the largest of 64, 128, 256, 512, 1024 that "
+        "gets at least 0.1 bit per pixel of a --bits-per-vertex or --bytes target; 256 with --bpp)",
+    )
     target = p.add_mutually_exclusive_group()
     target.add_argument("--bpp", type=float, help="bits per geometry-image pixel (default 1)")
     target.add_argument("--bits-per-vertex", type=float, help="bits per vertex of the input mesh")
@@ -292,11 +301,13 @@ def _rd(args) -> None:
             from .surfaces.geometry_image import mesh_from_image
             from .surfaces.metrics import hausdorff_psnr
 
-            side = source.image.shape[0]
-            ceiling = hausdorff_psnr(source.mesh, mesh_from_image(source.image))
+            ceilings = [
+                f"{side} x {side}: {hausdorff_psnr(source.mesh, mesh_from_image(source.image(side))):.2f} dB"
+                for side in sorted({source.side(rate) for rate in rates})
+            ]
             print(
-                f"{source.name}: {len(source.mesh.vertices)} vertices, {side} x {side} geometry image "
-                f"in {source.image_s:.1f} s, {ceiling:.2f} dB against the original before coding"
+                f"{source.name}: {len(source.mesh.vertices)} vertices, parameterized in {source.image_s:.1f} s; "
+                f"geometry images against the original before coding: {', '.join(ceilings)}"
             )
     out = Path(args.out)
     rows = rd.run(sources, rates, codecs, out, progress=sys.stderr.isatty())

@@ -9,8 +9,11 @@ BD-PSNR against bandelets, and ``--decay`` fits the slope of ``log MSE`` against
 A mesh input (OBJ, PLY, OFF, STL, ...) is compared at equal file size too, with the rate in
 bits per vertex of the original mesh (``bpv = 8 * bytes / V``) and the Hausdorff PSNR
 (:func:`bandelets.surfaces.metrics.hausdorff_psnr`) of each decoded mesh against the
-original: bandelets and wavelets code its spherical geometry image (made once per mesh; its
-time is not in ``encode_s``), Draco (:mod:`bandelets.surfaces.draco`) the mesh itself.
+original: bandelets and wavelets code its spherical geometry image (parameterized once per
+mesh, sampled once per side; neither time is in ``encode_s``) of the side ``--size`` or, by
+default, the side the mesh coder picks for each rate
+(:func:`bandelets.surfaces.codec.auto_size`), Draco (:mod:`bandelets.surfaces.draco`) the
+mesh itself.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import csv
 import io
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +70,8 @@ SAMPLES = {
 SAMPLE_SIZE = 256
 
 _COLUMNS = ("input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s")
-_MESH_COLUMNS = tuple("bpv" if c == "bpp" else c for c in _COLUMNS)
+# For meshes, also the side of the geometry image a point was coded on (empty for Draco).
+_MESH_COLUMNS = (*("bpv" if c == "bpp" else c for c in _COLUMNS), "side")
 
 
 @dataclass(frozen=True)
@@ -82,19 +86,38 @@ class Source:
 
 @dataclass(frozen=True)
 class MeshSource:
-    """A mesh input: its label, the mesh, its geometry image and the seconds that took."""
+    """A mesh input: its label, the mesh, its spherical parameterization (and the seconds
+    that took), the geometry-image side (``None``: chosen per rate by
+    :func:`bandelets.surfaces.codec.auto_size`) and the images sampled so far, by side."""
 
     name: str
     mesh: object  # trimesh.Trimesh
-    image: np.ndarray
+    spherical: object  # bandelets.surfaces.codec.SphericalMesh
+    size: int | None
     image_s: float
+    images: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def side(self, rate: float) -> int:
+        """Side of the geometry image coded at ``rate`` bits per vertex."""
+        from .surfaces.codec import auto_size
+
+        return self.size or auto_size(rate * len(self.mesh.vertices))
+
+    def image(self, side: int) -> np.ndarray:
+        """The ``side x side`` geometry image (positions), sampled once."""
+        if side not in self.images:
+            from .surfaces.codec import sample_geometry_image
+
+            self.images[side] = sample_geometry_image(self.spherical, side).positions
+        return self.images[side]
 
 
-def load(spec: str, kind: str = "image", size: int = 256) -> Source | MeshSource:
+def load(spec: str, kind: str = "image", size: int | None = None) -> Source | MeshSource:
     """Read a PNG / .npy path or a mesh, or generate ``sample:NAME[@SIZE]`` (which has its own kind).
 
-    A mesh (a path ending in one of :data:`MESH_SUFFIXES`) is checked, parameterized and
-    sampled on a ``size`` x ``size`` geometry image here, once for all its points.
+    A mesh (a path ending in one of :data:`MESH_SUFFIXES`) is checked and parameterized here,
+    once for all its points; its geometry images are ``size`` x ``size``, or of the side
+    :func:`bandelets.surfaces.codec.auto_size` chooses for each rate.
 
     Raises
     ------
@@ -102,15 +125,17 @@ def load(spec: str, kind: str = "image", size: int = 256) -> Source | MeshSource
         Unknown sample, bad size, an unreadable file or one the codec cannot take.
     """
     if Path(spec).suffix.lower() in MESH_SUFFIXES:
-        from .surfaces.codec import load_mesh, make_geometry_image
+        from .surfaces.codec import check_size, load_mesh, map_to_sphere
 
         mesh = load_mesh(spec)
         start = time.perf_counter()
         try:
-            image = make_geometry_image(mesh, size).positions
+            if size is not None:
+                check_size(size)
+            spherical = map_to_sphere(mesh)
         except ValueError as err:
             raise ValueError(f"{spec}: {err}") from None
-        return MeshSource(Path(spec).stem, mesh, image, time.perf_counter() - start)
+        return MeshSource(Path(spec).stem, mesh, spherical, size, time.perf_counter() - start)
     if not spec.startswith("sample:"):
         from .codec import check_image
 
@@ -156,7 +181,9 @@ def _encode_mesh(source: MeshSource, codec: str, rate: float) -> bytes:
         return draco.encode(source.mesh, rate * len(source.mesh.vertices) / 8)
     from .surfaces.codec import encode_mesh
 
-    return encode_mesh(source.mesh, image=source.image, bits_per_vertex=rate, transform=codec)
+    return encode_mesh(
+        source.mesh, image=source.image(source.side(rate)), bits_per_vertex=rate, transform=codec
+    )
 
 
 def _decode_mesh(codec: str, data: bytes):
@@ -188,9 +215,11 @@ def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -
 
         rate_value = 8 * len(written) / len(source.mesh.vertices)
         quality = hausdorff_psnr(source.mesh, decoded)
+        side = {"side": "" if codec == "draco" else source.side(rate)}
     else:
         rate_value = bits_per_pixel(len(written), source.array.shape)
         quality = psnr(source.array, decoded, source.kind)
+        side = {}
     return {
         "input": source.name,
         "codec": codec,
@@ -200,6 +229,7 @@ def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -
         "psnr": quality,
         "encode_s": encode_s,
         "decode_s": decode_s,
+        **side,
     }
 
 
@@ -342,9 +372,10 @@ def _table(header: list[str], lines: list[list[str]]) -> str:
 
 
 def format_points(rows: list[dict]) -> str:
-    """Every measured point as a Markdown table."""
+    """Every measured point as a Markdown table (meshes: with the geometry image's side)."""
+    sides = bool(rows) and "side" in rows[0]
     return _table(
-        ["input", "codec", "target", "bytes", rate_key(rows), "PSNR dB", "enc s", "dec s"],
+        ["input", "codec", "target", "bytes", rate_key(rows), "PSNR dB", "enc s", "dec s"] + ["side"] * sides,
         [
             [
                 r["input"],
@@ -356,6 +387,7 @@ def format_points(rows: list[dict]) -> str:
                 f"{r['encode_s']:.2f}",
                 f"{r['decode_s']:.2f}",
             ]
+            + [str(r.get("side", ""))] * sides
             for r in rows
         ],
     )

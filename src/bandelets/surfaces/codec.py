@@ -16,13 +16,20 @@ import numpy as np
 from . import checks, geometry_image, sphere
 
 __all__ = [
+    "AUTO_SIZES",
+    "DEFAULT_SIZE",
     "GeometryImage",
+    "SphericalMesh",
+    "auto_size",
+    "check_size",
     "MESH_FORMATS",
     "decode_mesh",
     "encode_mesh",
     "load_mesh",
     "make_geometry_image",
+    "map_to_sphere",
     "mesh_bytes",
+    "sample_geometry_image",
 ]
 
 MESH_FORMATS = ("obj", "ply", "off")
@@ -62,6 +69,58 @@ def mesh_bytes(mesh, file_type: str) -> bytes:
     return data.encode() if isinstance(data, str) else data
 
 
+#: Side of the geometry image when the target is in bits per pixel (or absent).
+DEFAULT_SIZE = 256
+#: Sides the coder chooses from for a target in bytes or bits per vertex, and the fewest bits
+#: per pixel it lets the chosen side have. A larger image has a higher ceiling (the remeshing
+#: error) but fewer bits per pixel; on fandisk, elephant, the horse and the knight the larger
+#: of two sides measured at least as well down to about 0.1 bit per pixel, within 0.5 dB
+#: either way at the crossing (closing note of issue #4, benchmarks/rd-meshes-results.md).
+AUTO_SIZES = (64, 128, 256, 512, 1024)
+MIN_AUTO_BPP = 0.1
+
+
+def auto_size(bits: float) -> int:
+    """Side of the geometry image for a file of ``bits`` bits.
+
+    The largest of :data:`AUTO_SIZES` that still gets :data:`MIN_AUTO_BPP` bits per pixel,
+    the smallest if none does.
+    """
+    fitting = [n for n in AUTO_SIZES if bits >= MIN_AUTO_BPP * n * n]
+    return fitting[-1] if fitting else AUTO_SIZES[0]
+
+
+def check_size(size: int) -> None:
+    """``ValueError`` unless ``size`` is a usable geometry-image side (even, 4 to 4096)."""
+    if not (isinstance(size, (int, np.integer)) and 4 <= size <= 4096 and size % 2 == 0):
+        raise ValueError(f"the geometry image size must be even, from 4 to 4096, got {size}")
+
+
+@dataclass(frozen=True)
+class SphericalMesh:
+    """A checked closed genus-0 mesh and its spherical parameterization, from which
+    geometry images of any size are sampled.
+
+    Attributes
+    ----------
+    vertices : ndarray of float, shape (V, 3)
+    faces : ndarray of int, shape (F, 3)
+        Facing outwards.
+    points : ndarray of float, shape (V, 3)
+        Each vertex's point on the unit sphere.
+    normals : ndarray of float, shape (V, 3)
+        Unit vertex normals.
+    distortion : dict
+        :func:`.sphere.area_distortion` of the parameterization.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    distortion: dict
+
+
 @dataclass(frozen=True)
 class GeometryImage:
     """A mesh resampled on the octahedral grid.
@@ -81,7 +140,42 @@ class GeometryImage:
     distortion: dict
 
 
-def make_geometry_image(mesh, size: int = 256, **relaxation) -> GeometryImage:
+def map_to_sphere(mesh, **relaxation) -> SphericalMesh:
+    """Check a mesh (closed, manifold, connected, genus 0) and parameterize it on the sphere.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+    **relaxation
+        ``max_steps`` and ``tol`` of :func:`.sphere.spherical_parameterization`.
+
+    Raises
+    ------
+    ValueError
+        A mesh that is not closed, manifold, connected and of genus 0.
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    checks.check_genus0(vertices, faces)
+    if mesh.volume < 0:  # the faces must face outwards
+        faces = faces[:, ::-1]
+        mesh = mesh.copy()
+        mesh.invert()
+    mapped = sphere.spherical_parameterization(vertices, faces, **relaxation)
+    normals = np.asarray(mesh.vertex_normals, dtype=np.float64)
+    return SphericalMesh(vertices, faces, mapped.points, normals, mapped.distortion)
+
+
+def sample_geometry_image(spherical: SphericalMesh, size: int) -> GeometryImage:
+    """The ``size x size`` geometry image (positions and normals) of a parameterized mesh."""
+    check_size(size)
+    positions, normals = geometry_image.sample(
+        spherical.vertices, spherical.faces, spherical.points, size, spherical.normals
+    )
+    return GeometryImage(positions, normals, spherical.distortion)
+
+
+def make_geometry_image(mesh, size: int = DEFAULT_SIZE, **relaxation) -> GeometryImage:
     """Check, parameterize on the sphere and sample a closed genus-0 mesh.
 
     Parameters
@@ -97,26 +191,14 @@ def make_geometry_image(mesh, size: int = 256, **relaxation) -> GeometryImage:
     ValueError
         Bad size, or a mesh that is not closed, manifold, connected and of genus 0.
     """
-    if not (4 <= size <= 4096 and size % 2 == 0):
-        raise ValueError(f"the geometry image size must be even, from 4 to 4096, got {size}")
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    checks.check_genus0(vertices, faces)
-    if mesh.volume < 0:  # the faces must face outwards
-        faces = faces[:, ::-1]
-        mesh = mesh.copy()
-        mesh.invert()
-    mapped = sphere.spherical_parameterization(vertices, faces, **relaxation)
-    positions, normals = geometry_image.sample(
-        vertices, faces, mapped.points, size, np.asarray(mesh.vertex_normals, dtype=np.float64)
-    )
-    return GeometryImage(positions, normals, mapped.distortion)
+    check_size(size)  # before the slow parameterization
+    return sample_geometry_image(map_to_sphere(mesh, **relaxation), size)
 
 
 def encode_mesh(
     mesh,
     *,
-    size: int = 256,
+    size: int | None = None,
     bpp: float | None = None,
     bits_per_vertex: float | None = None,
     n_bytes: int | None = None,
@@ -125,14 +207,16 @@ def encode_mesh(
     normal_weight: float = 2.0,
     extension: str = "spherical",
     image: np.ndarray | None = None,
+    spherical: SphericalMesh | None = None,
 ) -> bytes:
     """Compress a closed genus-0 mesh into a .bdl file.
 
     Parameters
     ----------
     mesh : trimesh.Trimesh
-    size : int
-        Side of the geometry image (even).
+    size : int, optional
+        Side of the geometry image (even). Default: :func:`auto_size` of the target for a
+        target in bytes or bits per vertex, :data:`DEFAULT_SIZE` otherwise.
     bpp, bits_per_vertex, n_bytes : at most one
         Target: bits per geometry-image pixel, bits per vertex of ``mesh``, or bytes of the
         whole file; the file lands within 3 % below it. Default: 1 bpp.
@@ -140,8 +224,11 @@ def encode_mesh(
     frames, normal_weight, extension
         Local frames, weight of their normal component and wavelet boundary extension
         (:func:`bandelets.encode`); the defaults are the best measured (benchmarks/rd_meshes.py).
-    image : ndarray of float, shape (size, size, 3), optional
-        The geometry image of ``mesh`` if already made (:func:`make_geometry_image`).
+    image : ndarray of float, shape (n, n, 3), optional
+        The geometry image to code, if already made (:func:`make_geometry_image`); it fixes
+        the size.
+    spherical : SphericalMesh, optional
+        The parameterization of ``mesh``, if already made (:func:`map_to_sphere`).
 
     Returns
     -------
@@ -153,20 +240,28 @@ def encode_mesh(
     given = [name for name, value in targets.items() if value is not None]
     if len(given) > 1:
         raise ValueError(f"give at most one target, got {', '.join(given)}")
-    codec.check_geometry_options(normal_weight, extension)  # before the slow parameterization
-    if image is None:
-        image = make_geometry_image(mesh, size).positions
-    pixels = image.shape[0] * image.shape[1]
     for name, value in targets.items():
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
+    codec.check_geometry_options(normal_weight, extension)  # before the slow parameterization
+    if image is not None:
+        if size is not None and size != image.shape[0]:
+            raise ValueError(f"size {size} given with a {image.shape[0]} x {image.shape[1]} geometry image")
+        size = image.shape[0]
     if bits_per_vertex is not None:
-        bpp = bits_per_vertex * len(mesh.vertices) / pixels
+        bits = bits_per_vertex * len(mesh.vertices)
     elif n_bytes is not None:
-        bpp = 8.0 * n_bytes / pixels
+        bits = 8.0 * n_bytes
+    else:
+        size = size or DEFAULT_SIZE
+        bits = (1.0 if bpp is None else bpp) * size * size
+    size = size or auto_size(bits)
+    check_size(size)
+    if image is None:
+        image = sample_geometry_image(spherical or map_to_sphere(mesh), size).positions
     return codec.encode(
         image,
-        bpp=1.0 if bpp is None else bpp,
+        bpp=bits / (image.shape[0] * image.shape[1]),
         transform=transform,
         kind="geometry-image",
         frames=frames,
