@@ -109,9 +109,8 @@ def main() -> None:
             for width in (8, 16)
         ]
         gain = real_gain(surface, kind)
-        print(
-            f"{name:<26} {wavelet.threshold:>8.2g} {100 * left[0]:>8.0f}% {100 * left[1]:>5.0f}% {gain:>+12.2f} dB"
-        )
+        shares = f"{100 * left[0]:>8.0f}% {100 * left[1]:>5.0f}%"
+        print(f"{name:<26} {wavelet.threshold:>8.2g} {shares} {gain:>+12.2f} dB")
 
 
 if __name__ == "__main__":

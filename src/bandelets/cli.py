@@ -306,8 +306,9 @@ def _rd(args) -> None:
                 for side in sorted({source.side(rate) for rate in rates})
             ]
             print(
-                f"{source.name}: {len(source.mesh.vertices)} vertices, parameterized in {source.image_s:.1f} s; "
-                f"geometry images against the original before coding: {', '.join(ceilings)}"
+                f"{source.name}: {len(source.mesh.vertices)} vertices, "
+                f"parameterized in {source.image_s:.1f} s; geometry images against the original "
+                f"before coding: {', '.join(ceilings)}"
             )
     out = Path(args.out)
     rows = rd.run(sources, rates, codecs, out, progress=sys.stderr.isatty())
