@@ -11,7 +11,9 @@ percent of the wavelet's, for L = 8 and 16; then the real BD-PSNR of bandelets o
 Surfaces: the generated crease normal map at 256 and 512, the 256 map blurred by a Gaussian
 of 0.7, 1.5 and 3 pixels (the paper's model: a crease blurred over several samples), the
 smooth bumps, and, when ``../shared/data/meshes`` is there, the normal map and the geometry
-image (x channel) of fandisk.
+image (x channel) of fandisk. Then, on the crease map at 256: the ceiling with other 1D
+transforms, and inside the squares the real search picks, the significant coefficients and
+the bits the real coder spends on them, with and without bandelets.
 
     python benchmarks/bandelet_ceiling.py [--meshes DIR]
 """
@@ -22,20 +24,40 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+import pywt
 from scipy import ndimage
 
 import bandelets
-from bandelets.bandeletize import transform_rows
-from bandelets.codec import encode_with_stats, wavelet_coefficients
+from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, transform_rows
+from bandelets.codec import (
+    Header,
+    _apply_trees,
+    _best_trees,
+    code_image,
+    encode_with_stats,
+    new_coders,
+    wavelet_coefficients,
+)
 from bandelets.geometry import directions
+from bandelets.layout import subband_plan
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.quantize import quantize
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.wavelets import max_levels, subband_slices
 
 RATES = (0.25, 0.5, 1.0, 2.0)
 
 
-def significant_left(coefficients: np.ndarray, levels: int, threshold: float, width: int) -> float:
+def _along(rows: np.ndarray, transform: str) -> np.ndarray:
+    """1D transform of each row: ours (Haar, Alpert) or a PyWavelets orthogonal wavelet."""
+    if transform in TRANSFORMS_1D:
+        return transform_rows(rows, transform)
+    return np.concatenate(pywt.wavedec(rows, transform, mode="periodization", axis=1), axis=1)
+
+
+def significant_left(
+    coefficients: np.ndarray, levels: int, threshold: float, width: int, transform: str = "alpert2"
+) -> float:
     """Coefficients at or above ``threshold`` with the best free direction per square, over those
     of the wavelet transform, for every square of ``width`` in every detail subband."""
     orders = directions(width)[1]
@@ -50,9 +72,30 @@ def significant_left(coefficients: np.ndarray, levels: int, threshold: float, wi
             if count < 2:  # nothing to gain
                 bandelet += count
                 continue
-            transformed = transform_rows(square[orders], "alpert2")
+            transformed = _along(square[orders], transform)
             bandelet += min(count, int(np.sum(np.abs(transformed) >= threshold, axis=1).min()))
     return bandelet / max(wavelet, 1)
+
+
+def bits_per_significant(coefficients: list[np.ndarray], levels: int, threshold: float) -> dict:
+    """Inside the squares the search gives a direction at ``threshold``: significant coefficients
+    and coded bits (the coder's own ledger) with and without the bandelet transform."""
+    trees = _best_trees(coefficients, levels, threshold, "bandelet", "alpert2")
+    shape = coefficients[0].shape
+    inside = np.zeros(shape[0] * shape[1], bool)
+    for index, tree in enumerate(trees):
+        inside[subband_plan(shape, levels, index, tree, "alpert2")[0].order] = True
+    out = {}
+    for transform in ("wavelet", "bandelet"):
+        header = Header(*shape, len(coefficients), "image", transform, "cdf97", levels, threshold)
+        values = coefficients
+        if transform == "bandelet":
+            values = [_apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
+        q = [quantize(v, threshold).ravel() for v in values]
+        _, _, spent = code_image(new_coders(), header, trees if transform == "bandelet" else None, q)
+        significant = sum(int(np.count_nonzero(c[inside])) for c in q)
+        out[transform] = (significant, sum(float(s[inside].sum()) for s in spent))
+    return out
 
 
 def real_gain(surface: np.ndarray, kind: str) -> float:
@@ -111,6 +154,18 @@ def main() -> None:
         gain = real_gain(surface, kind)
         shares = f"{100 * left[0]:>8.0f}% {100 * left[1]:>5.0f}%"
         print(f"{name:<26} {wavelet.threshold:>8.2g} {shares} {gain:>+12.2f} dB")
+        if name == "crease 256":
+            crease = (channels, levels, wavelet.threshold)
+    channels, levels, threshold = crease
+    print(f"\ncrease 256, L = 16, T = {threshold:.2g}: significant coefficients left by 1D transform")
+    for transform in (*TRANSFORMS_1D, "db2", "db4", "sym4"):
+        share = np.mean([significant_left(c, levels, threshold, 16, transform) for c in channels])
+        print(f"  {transform:<8} {100 * share:>4.0f}%")
+    counts = bits_per_significant(channels, levels, threshold)
+    print("crease 256, inside the squares the search gives a direction:")
+    for transform, (significant, bits) in counts.items():
+        each = bits / significant
+        print(f"  {transform:<8} {significant:>6d} significant, {bits:>8.0f} bits, {each:.2f} per one")
 
 
 if __name__ == "__main__":
