@@ -14,7 +14,7 @@ import pytest
 import bandelets
 from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, pack, unpack
 
-HEADER_SIZE = 40  # fixed fields, before the streams
+HEADER_SIZE = 41  # fixed fields, before the streams
 GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields
 
 
@@ -126,6 +126,7 @@ def test_truncated_header(small_file):
         (20, "<d", float("inf"), "threshold"),
         (28, "<I", 10**6, "stream lengths"),
         (36, "<I", 0, "stream lengths"),
+        (40, "<B", 101, "restoration iterations"),
     ],
 )
 def test_absurd_fields_are_format_errors(small_file, offset, fmt, value, words):
@@ -264,6 +265,11 @@ def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, v
 def test_normal_weight_without_frames_is_a_format_error(geometry_file):
     with pytest.raises(FormatError, match="without local frames"):
         bandelets.decode(_patched(geometry_file, HEADER_SIZE + 1, "<B", 0))
+
+
+def test_restoration_with_local_frames_is_a_format_error(geometry_file):
+    with pytest.raises(FormatError, match="restoration with local frames"):
+        bandelets.decode(_patched(geometry_file, 40, "<B", 3))
 
 
 def test_geometry_file_truncated_in_its_options(geometry_file):

@@ -126,6 +126,19 @@ def test_16_bit_rgb_normal_map(tmp_path, capsys, crease_map):
     assert psnr(crease_map[:48, :40], vectors, "normal-map") > 25
 
 
+def test_no_restore_keeps_the_size_and_turns_the_restoration_off(tmp_path, capsys, crease_map):
+    npy = tmp_path / "normals.npy"
+    np.save(npy, crease_map)
+    sizes = {}
+    for flags in ((), ("--no-restore",)):
+        bdl = tmp_path / f"normals{len(flags)}.bdl"
+        _ok(capsys, "encode", npy, bdl, "--kind", "normal-map", "--bpp", "1", *flags)
+        info = json.loads(_ok(capsys, "info", bdl))
+        sizes[flags] = info["bytes"]
+        assert (info["restoration"] > 0) == (not flags)
+    assert len(set(sizes.values())) == 1
+
+
 def test_rgba_png_drops_alpha_with_a_warning(tmp_path, capsys):
     rgb = np.rint(np.stack([_gray((32, 32))] * 3, -1) * 255).astype(np.uint8)
     alpha = np.full((32, 32, 1), 200, np.uint8)

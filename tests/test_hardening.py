@@ -13,13 +13,14 @@ import time
 import tracemalloc
 import warnings
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import bandelets
-from bandelets.bitstream import MAX_MEMORY, FormatError, Header, decoder_memory, encoder_memory, pack
+from bandelets.bitstream import MAX_MEMORY, FormatError, Header, decoder_memory, encoder_memory, pack, unpack
 
 DATA = Path(__file__).resolve().parent / "data"
 GOLDEN = sorted(DATA.glob("*.bdl"))
@@ -148,6 +149,15 @@ def test_memory_estimate_covers_the_measured_peak():
         tracemalloc.stop()
         channels = shape[2] if len(shape) == 3 else 1
         assert peak <= decoder_memory(shape[0], shape[1], channels, 4), (shape, peak)
+        # The same streams, restored by the decoder.
+        header, streams = unpack(data)
+        restored = pack(replace(header, restoration=5), streams)
+        bandelets.decode(restored)
+        tracemalloc.start()
+        bandelets.decode(restored)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert peak <= decoder_memory(shape[0], shape[1], channels, 4, restoration=True), (shape, peak)
 
 
 @pytest.mark.parametrize("shape", [(100_000, 100_000), (40_000, 40_000, 3), (8000, 8000, 4)])

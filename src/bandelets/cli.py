@@ -69,6 +69,11 @@ def _build_parser() -> argparse.ArgumentParser:
         default="alpert2",
         help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar",
     )
+    p.add_argument(
+        "--no-restore",
+        action="store_true",
+        help="decode by plain dequantization: no total-variation restoration (faster to encode and decode)",
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
@@ -191,6 +196,7 @@ def _encode(args) -> None:
         wavelet=args.wavelet,
         transform_1d=args.transform_1d,
         depth=depth,
+        restore=not args.no_restore,
         progress=sys.stderr.isatty(),
     )
     write_atomic(args.output, data)
@@ -242,6 +248,7 @@ def _info(args) -> None:
         "levels": header.levels,
         "transform_1d": header.transform_1d,
         "threshold": header.threshold,
+        "restoration": header.restoration,
         "bytes": len(data),
         "bpp": bits_per_pixel(len(data), (header.height, header.width)),
         "bits": {
