@@ -1,0 +1,73 @@
+"""What the decoder-side restoration adds, file by file.
+
+For each surface and target rate, encode once with ``restore=False`` and once with the
+default (the encoder picks the number of restoration iterations), check that the two files
+have the same size (only one header byte differs), decode both and print the PSNRs, the
+iterations chosen and the decode times; then the BD-PSNR of the restored curve over the plain
+one. Surfaces: the generated crease and bumps normal maps (bandelets, CDF 9/7) and, when
+``../shared/data/meshes`` is there, the normal map of fandisk's 256 x 256 geometry image.
+
+    python benchmarks/restoration_gain.py [--size 256] [--rates 0.25,0.5,1,2] [--meshes DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import bandelets
+from bandelets.bitstream import unpack
+from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
+from bandelets.samples import bump_normal_map, crease_normal_map
+
+
+def surfaces(size: int, meshes: Path):
+    yield "crease", crease_normal_map(size)
+    yield "bumps", bump_normal_map(size)
+    fandisk = meshes / "fandisk.off"
+    if not fandisk.exists():
+        print(f"(skipping fandisk: {fandisk} not found)")
+        return
+    from bandelets.surfaces.codec import load_mesh, make_geometry_image
+
+    yield "fandisk normals", make_geometry_image(load_mesh(fandisk), size).normals
+
+
+def _decoded(data: bytes, normals):
+    start = time.perf_counter()
+    decoded = bandelets.decode(data)
+    return psnr(normals, decoded, "normal-map"), time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--rates", default="0.25,0.5,1,2")
+    parser.add_argument("--meshes", type=Path, default=Path(__file__).parents[2] / "shared/data/meshes")
+    args = parser.parse_args()
+    rates = [float(r) for r in args.rates.split(",")]
+    columns = f"{'target':>6} {'bytes':>6} {'plain':>7} {'restored':>8} {'gain':>6} {'iter':>4}  decode"
+    print(f"{'surface':<16} {columns}")
+    for name, normals in surfaces(args.size, args.meshes):
+        curves = {"plain": ([], []), "restored": ([], [])}
+        for rate in rates:
+            plain = bandelets.encode(normals, bpp=rate, kind="normal-map", restore=False)
+            restored = bandelets.encode(normals, bpp=rate, kind="normal-map")
+            assert len(plain) == len(restored), "the restoration must not change the size"
+            (p0, t0), (p1, t1) = _decoded(plain, normals), _decoded(restored, normals)
+            bpp = bits_per_pixel(len(restored), normals.shape)
+            for key, value in (("plain", p0), ("restored", p1)):
+                curves[key][0].append(bpp)
+                curves[key][1].append(value)
+            iterations = unpack(restored)[0].restoration
+            print(
+                f"{name:<16} {rate:>6g} {len(restored):>6} {p0:>7.2f} {p1:>8.2f} {p1 - p0:>+6.2f} "
+                f"{iterations:>4}  {t0:.2f} -> {t1:.2f} s"
+            )
+        gain = bd_psnr(*curves["restored"], *curves["plain"])
+        print(f"{name}: BD-PSNR of the restoration {gain:+.2f} dB\n")
+
+
+if __name__ == "__main__":
+    main()
