@@ -34,7 +34,7 @@ from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .layout import approximation_plan, subband_plan
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
-from .quantize import RECONSTRUCTION, dequantize, quantize
+from .quantize import PROMOTE_ABOVE, RECONSTRUCTION, dequantize, quantize
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, predicted_directions, reference_of
 from .wavelets import WAVELETS, check_extension, max_levels, padded_shape, subband_slices, wavedec, waverec
 
@@ -397,8 +397,6 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
 
 #: Lagrange multiplier of the quantization decisions, in T**2 per bit (the search's LAMBDA).
 RDOQ_LAMBDA = LAMBDA
-#: Dead-zone values above this many T may be coded as +-1 (the quantizer's dead zone is T).
-PROMOTE_ABOVE = 0.7
 #: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
 _SIGN_AND_MAGNITUDE_BITS = 1.5
 

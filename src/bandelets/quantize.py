@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["quantize", "dequantize", "bin_index", "quantization_error", "bin_and_error"]
+__all__ = ["PROMOTE_ABOVE", "quantize", "dequantize", "bin_index", "quantization_error", "bin_and_error"]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
@@ -24,6 +24,8 @@ MAX_INDEX = 2**30
 # not see a change here, so delete src/bandelets/__pycache__/*.nb[ic] after changing it
 # (tests/test_reference.py fails on a stale cache).
 RECONSTRUCTION = 0.44
+#: Dead-zone values above this many T may be coded as +-1 by the encoder (the dead zone is T).
+PROMOTE_ABOVE = 0.7
 
 
 def quantize(x: np.ndarray, threshold: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from numba import njit
 
-from .quantize import RECONSTRUCTION
+from .quantize import PROMOTE_ABOVE, dequantize
 
 __all__ = ["STEP", "SMOOTHING", "MAX_ITERATIONS", "bin_bounds", "total_variation_gradient", "iterate"]
 
@@ -43,8 +43,8 @@ SMOOTHING = 0.01
 MAX_ITERATIONS = 100
 #: What the encoder's rate-distortion optimised quantization may do to a value (see
 #: ``bandelets.codec._optimise_bins``): a value of bin +-1 (below 2T) may be coded as 0, and a
-#: dead-zone value above 0.7 T as +-1. The bins the restoration keeps each coefficient in.
-_ZERO_UP_TO, _ONE_DOWN_TO = 2.0, 0.7
+#: dead-zone value above PROMOTE_ABOVE T as +-1. So a 0 may hide up to 2T, a +-1 down to that.
+_ZERO_UP_TO = 2.0
 
 
 def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
@@ -61,11 +61,11 @@ def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]
     Returns
     -------
     low, high : ndarray of float64, shape of ``q``
-        ``[-2T, 2T]`` for 0, ``[0.7 T, 2T]`` for 1, ``[|q| T, (|q| + 1) T]`` above, with the
+        ``[-2T, 2T]`` for 0, ``[PROMOTE_ABOVE T, 2T]`` for 1, ``[|q| T, (|q| + 1) T]`` above, with the
         sign of ``q``.
     """
     a = np.abs(q).astype(np.float64)
-    low = np.where(a == 0, -_ZERO_UP_TO, np.where(a == 1, _ONE_DOWN_TO, a)) * threshold
+    low = np.where(a == 0, -_ZERO_UP_TO, np.where(a == 1, PROMOTE_ABOVE, a)) * threshold
     high = np.where(a <= 1, _ZERO_UP_TO, a + 1.0) * threshold
     negative = q < 0
     return np.where(negative, -high, low), np.where(negative, -low, high)
@@ -142,9 +142,9 @@ def iterate(
     Yields
     ------
     ndarray, shape (C, H, W), float64: the channels (the first one: plain dequantization,
-    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin).
+    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin, :func:`dequantize`).
     """
-    x = np.array([synthesis(np.sign(b) * (np.abs(b) + RECONSTRUCTION) * threshold) for b in q])
+    x = np.array([synthesis(dequantize(b, threshold)) for b in q])
     yield x
     if min(x.shape[1:]) < 2:  # no gradient to follow
         while True:
