@@ -31,6 +31,7 @@ MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 VARIANTS = {
     "default": {},
     "no-frames": {"frames": False},
+    "no-frames-restored": {"frames": False, "restore": True},
     "symmetric": {"extension": "symmetric"},
     "plain": {"frames": False, "extension": "symmetric"},
     "weight1": {"normal_weight": 1.0},

@@ -20,7 +20,8 @@ Runs ``bandelets rd`` four times, on the surfaces the package generates and on t
 Each run writes its files, rd.csv and rd.png under ``OUT/NAME/``; the printed tables are
 collected in ``benchmarks/rd-results.md`` (one ``## NAME`` section per run) and the plots
 copied to ``benchmarks/rd-NAME.png``. ``--only NAME ...`` reruns some runs and replaces just
-their sections.
+their sections. With a ``--size`` other than 256 the runs are named ``NAME-SIZE`` (for
+instance ``normal-maps-512``, the paper's resolution), so they sit beside the default ones.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ MODEL_RATES = "0.03125,0.0442,0.0625,0.0884,0.125,0.177,0.25"
 MESH_NORMAL_RATES = "0.25,0.5,1,2"
 MESHES = ("fandisk.off", "bunny.off")
 RUNS = ("normal-maps", "model", "decay", "mesh-normals")
+DEFAULT_SIZE = 256
 
 
 def _run(argv: list[str]) -> str:
@@ -90,7 +92,9 @@ def _store(results: Path, name: str, text: str) -> None:
 
 def main_benchmark() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--size", type=int, default=256, help="side of the generated maps (default 256)")
+    parser.add_argument(
+        "--size", type=int, default=DEFAULT_SIZE, help=f"side of the generated maps (default {DEFAULT_SIZE})"
+    )
     parser.add_argument(
         "--out", type=Path, default=Path("out/rd-benchmark"), help="folder of the runs (out/rd-benchmark)"
     )
@@ -127,9 +131,8 @@ def main_benchmark() -> None:
     if "mesh-normals" in args.only and (paths := _mesh_normal_maps(args.meshes, s, inputs)):
         runs["mesh-normals"] = [*paths, "--kind", "normal-map", "--rates", MESH_NORMAL_RATES]
     results = HERE / "rd-results.md"
-    if set(args.only) == set(RUNS):
-        results.write_text("")
     for name, argv in runs.items():
+        name = name if s == DEFAULT_SIZE else f"{name}-{s}"
         _store(results, name, _run(["rd", *argv, "--out", str(args.out / name)]))
         shutil.copyfile(args.out / name / "rd.png", HERE / f"rd-{name}.png")
 

@@ -356,6 +356,8 @@ class Encoded:
     threshold: float
     # Squared quantization error summed over all (padded) coefficients, before any restoration.
     coefficient_sse: float
+    # PSNR of the decoded file, when the encoder has already measured it (the restoration does).
+    psnr: float | None = None
 
 
 def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encoded:
@@ -677,7 +679,8 @@ def encode_with_stats(
     progress=False,
     max_memory=MAX_MEMORY,
 ) -> Encoded:
-    """:func:`encode`, returning also the threshold used and the predicted error."""
+    """:func:`encode`, returning also the threshold used, the predicted error and (when the
+    encoder chose the restoration) the PSNR of the decoded file."""
     if wavelet == AUTO_WAVELET:
         return _best_of_wavelets(
             array,
@@ -757,9 +760,11 @@ def encode_with_stats(
     # Start where a uniform quantizer's error would meet the target.
     t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
 
-    def quality(data: bytes) -> float:
+    def quality(encoded: Encoded) -> float:
+        if encoded.psnr is not None:  # measured on the restored image, as decode returns it
+            return encoded.psnr
         # Our own file: only the caller's memory limit applies, not the limits on foreign files.
-        decoded = decode(data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
+        decoded = decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
         return metrics.psnr(reference, decoded, kind)
 
     # Each try is restored: the target is met by the restored image, with the smallest file.
@@ -790,8 +795,8 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
         if n == restoration.MAX_ITERATIONS or n - best >= _RESTORATION_PATIENCE:
             break
     if best == 0:
-        return encoded
-    return replace(encoded, data=pack(replace(header, restoration=best), streams))
+        return replace(encoded, psnr=best_psnr)
+    return replace(encoded, data=pack(replace(header, restoration=best), streams), psnr=best_psnr)
 
 
 #: The ``wavelet`` that lets the encoder choose, per image and target, among

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -186,13 +187,16 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
 
 def for_quality(
     encode_at: Callable,
-    quality: Callable[[bytes], float],
+    quality: Callable[[Any], float],
     target: float,
     t_max: float,
     t_guess: float,
     progress: bool = False,
 ):
     """Smallest file whose ``quality(file) >= target`` (a PSNR in dB), by a secant search.
+
+    ``encode_at(T)`` returns an encoded file (with its bytes in ``.data``), which ``quality``
+    is given whole: the encoder may already know the file's PSNR.
 
     Stops when the kept file is within 0.05 dB above the target or ``T`` is pinned.
 
@@ -207,7 +211,7 @@ def for_quality(
     def measure(x):
         nonlocal best
         result = encode_at(math.exp(x))
-        q = quality(result.data)
+        q = quality(result)
         if q >= target and (best is None or len(result.data) < len(best.data)):
             best = result
         if q < target and x <= floor:
