@@ -24,7 +24,8 @@ Layout (little endian)::
 A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
 coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
 (format version 2; version 1 always coded three channels). Format version 3 added the
-restoration byte; this build reads version 3 only.
+restoration byte; version 4 restores a normal map coded with its three channels on the unit
+sphere (:func:`bandelets.restoration.iterate`). This build reads version 4 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -69,7 +70,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
 #: Largest side and sample count a decoder accepts by default.

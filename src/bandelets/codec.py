@@ -528,8 +528,7 @@ def decode_parsed(
         frames.to_global(coefficients, header.wavelet, header.levels, header.extension, header.normal_weight)
         channels = [waverec(c, header.wavelet, header.levels, header.extension) for c in coefficients]
     else:
-        steps = restoration.iterate(quantized, header.threshold, *_transforms(header, trees))
-        channels = next(islice(steps, header.restoration, None))
+        channels = next(islice(_restorations(header, trees, quantized), header.restoration, None))
     return _output(channels, header)
 
 
@@ -544,6 +543,17 @@ def _decoded_bins(header: Header, streams: tuple[bytes, bytes, bytes]) -> tuple[
         raise FormatError(f"corrupt .bdl file: {err}") from None
     shape = padded_shape((header.height, header.width), header.levels)
     return trees, [q.reshape(shape) for q in quantized]
+
+
+def _restorations(header: Header, trees: list, quantized: list[np.ndarray]):
+    """The channels after 0, 1, 2, ... restoration iterations (:func:`bandelets.restoration.iterate`)."""
+    unit = header.kind == "normal-map" and header.channels == 3
+    return restoration.iterate(
+        quantized,
+        header.threshold,
+        *_transforms(header, trees),
+        unit_vectors=(header.height, header.width) if unit else None,
+    )
 
 
 def _transforms(header: Header, trees: list):
@@ -787,8 +797,7 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
         return encoded
     trees, quantized = _decoded_bins(header, streams)
     best, best_psnr = 0, -np.inf
-    steps = restoration.iterate(quantized, header.threshold, *_transforms(header, trees))
-    for n, channels in enumerate(steps):
+    for n, channels in enumerate(_restorations(header, trees, quantized)):
         value = metrics.psnr(reference, _output(channels, header), header.kind)
         if value > best_psnr:
             best, best_psnr = n, value

@@ -39,6 +39,13 @@ def normal_map_24x20() -> np.ndarray:
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
+def facing_away_16() -> np.ndarray:
+    """16 x 16 normal map whose normals face every way (z < 0 on half): three channels coded."""
+    v, u = np.mgrid[0:16, 0:16].astype(np.float64) / 15.0
+    theta, phi = np.pi * (0.15 + 0.7 * v), 2.5 * u + 0.4 * np.sign(u - 0.45)
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+
+
 def geometry_image_32() -> np.ndarray:
     """32 x 32 geometry image: positions of a bumped sphere patch."""
     v, u = np.mgrid[0:32, 0:32].astype(np.float64) / 31.0
@@ -53,6 +60,10 @@ GOLDEN = {
     "normal24x20.bdl": (
         normal_map_24x20,
         {"threshold": 0.005, "kind": "normal-map", "transform": "bandelet"},
+    ),
+    "facing16.bdl": (
+        facing_away_16,
+        {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet"},
     ),
     "geometry32.bdl": (
         geometry_image_32,
