@@ -101,9 +101,7 @@ def test_three_channel_normal_maps_are_restored_on_the_sphere(crease_map):
 
     def best(unit_vectors):
         steps = restoration.iterate(quantized, header.threshold, *transforms, unit_vectors=unit_vectors)
-        return max(
-            metrics.psnr(normals, codec._output(next(steps), header), "normal-map") for _ in range(30)
-        )
+        return max(metrics.psnr(normals, codec._output(next(steps), header), "normal-map") for _ in range(30))
 
     assert best((64, 64)) > best(None) + 0.05
 
