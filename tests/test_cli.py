@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import imagecodecs
@@ -17,6 +18,8 @@ import numpy as np
 import pytest
 from conftest import straight_edge
 
+import bandelets
+from bandelets.bitstream import pack, unpack
 from bandelets.cli import main
 from bandelets.metrics import psnr
 
@@ -137,6 +140,25 @@ def test_no_restore_keeps_the_size_and_turns_the_restoration_off(tmp_path, capsy
         sizes[flags] = info["bytes"]
         assert (info["restoration"] > 0) == (not flags)
     assert len(set(sizes.values())) == 1
+
+
+def test_decode_no_restore_is_plain_dequantization(tmp_path, capsys, crease_map):
+    npy, bdl = tmp_path / "normals.npy", tmp_path / "normals.bdl"
+    np.save(npy, crease_map)
+    _ok(capsys, "encode", npy, bdl, "--kind", "normal-map", "--bpp", "1")
+    data = bdl.read_bytes()
+    header, streams = unpack(data)
+    assert header.restoration > 0
+    outputs = {}
+    for flags in ((), ("--no-restore",)):
+        out = tmp_path / f"decoded{len(flags)}.npy"
+        _ok(capsys, "decode", bdl, out, *flags)
+        outputs[flags] = np.load(out)
+    plain = bandelets.decode(pack(replace(header, restoration=0), streams))
+    np.testing.assert_array_equal(outputs[("--no-restore",)], plain.astype(np.float32))
+    np.testing.assert_array_equal(bandelets.decode(data, restore=False), plain)
+    assert psnr(crease_map, outputs[()], "normal-map") > psnr(crease_map, plain, "normal-map")
+    assert bdl.read_bytes() == data  # the input is never touched
 
 
 def test_rgba_png_drops_alpha_with_a_warning(tmp_path, capsys):

@@ -14,6 +14,7 @@ import json
 import os
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 __all__ = ["main"]
@@ -79,6 +80,11 @@ def _build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
     p.add_argument("input")
     p.add_argument("output", help=".png (the source's bit depth) or .npy (float32)")
+    p.add_argument(
+        "--no-restore",
+        action="store_true",
+        help="skip the restoration the file asks for: a faster decode of lower quality (a preview)",
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser("info", help="print what a .bdl file holds, as one JSON object")
@@ -210,7 +216,8 @@ def _decode(args) -> None:
     _check_output(args.input, args.output, args.force)
     with _about(args.input):
         header, streams = unpack(_read_bdl(args.input))
-        decoded = decode_parsed(header, streams)
+        kept = replace(header, restoration=0) if args.no_restore else header
+        decoded = decode_parsed(kept, streams)
     write_array(args.output, decoded, header.kind, header.depth)
 
 

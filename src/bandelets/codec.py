@@ -485,13 +485,16 @@ def wavelet_coefficients(
     return [wavedec(_pad(x[..., k], levels), wavelet, levels, extension) for k in range(x.shape[2])]
 
 
-def decode(data: bytes, *, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
+def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
     """Decode a .bdl file.
 
     Parameters
     ----------
     data : bytes
         The whole file.
+    restore : bool
+        Run the restoration iterations the file asks for (:mod:`bandelets.restoration`).
+        False: plain dequantization, a faster decode of lower quality (a preview).
     max_memory : int
         Refuse a file whose decoding needs more than this many bytes (estimated from its
         header, see :func:`bandelets.bitstream.check_memory`; default 2 GiB).
@@ -509,6 +512,8 @@ def decode(data: bytes, *, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray
         For any corrupt, truncated or unsupported file.
     """
     header, streams = unpack(bytes(data), **limits)
+    if not restore:
+        header = replace(header, restoration=0)
     return decode_parsed(header, streams, max_memory=max_memory)
 
 
