@@ -8,6 +8,12 @@ one. Surfaces: the generated crease and bumps normal maps (bandelets, CDF 9/7) a
 ``../shared/data/meshes`` is there, the normal map of fandisk's 256 x 256 geometry image.
 
     python benchmarks/restoration_gain.py [--size 256] [--rates 0.25,0.5,1,2] [--meshes DIR]
+        [--edge E] [--step S]
+
+``--edge`` and ``--step`` replace :data:`bandelets.restoration.EDGE` and ``STEP`` for this run
+(encoder and decoder alike), to measure other choices of the decoder's constants; files made
+that way are not .bdl files any other build decodes the same. ``--edge 1e9`` is the plain
+total variation.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ import time
 from pathlib import Path
 
 import bandelets
+from bandelets import restoration
 from bandelets.bitstream import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
@@ -45,7 +52,11 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--rates", default="0.25,0.5,1,2")
     parser.add_argument("--meshes", type=Path, default=Path(__file__).parents[2] / "shared/data/meshes")
+    parser.add_argument("--edge", type=float, default=restoration.EDGE, help="EDGE, in units of T")
+    parser.add_argument("--step", type=float, default=restoration.STEP, help="STEP, in units of T")
     args = parser.parse_args()
+    restoration.EDGE, restoration.STEP = args.edge, args.step
+    print(f"EDGE {args.edge:g} T, STEP {args.step:g} T")
     rates = [float(r) for r in args.rates.split(",")]
     columns = f"{'target':>6} {'bytes':>6} {'plain':>7} {'restored':>8} {'gain':>6} {'iter':>4}  decode"
     print(f"{'surface':<16} {columns}")

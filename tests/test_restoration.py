@@ -32,22 +32,33 @@ def test_bins_hold_the_values_they_came_from(rng):
         assert np.all((low <= r) & (r <= high))
 
 
-def _total_variation(x, smoothing):
+def _penalty(x, smoothing, edge):
     dx = np.diff(x, axis=2, append=x[:, :, -1:])
     dy = np.diff(x, axis=1, append=x[:, -1:, :])
-    return np.sum(np.sqrt(np.sum(dx**2 + dy**2, axis=0) + smoothing**2))
+    n = np.sqrt(np.sum(dx**2 + dy**2, axis=0) + smoothing**2)
+    return np.sum(edge * np.log1p(n / edge))
 
 
-def test_total_variation_gradient_is_the_derivative(rng):
+@pytest.mark.parametrize("edge", [0.05, 1e6])  # a log total variation; the total variation
+def test_penalty_gradient_is_the_derivative(rng, edge):
     x = rng.random((2, 5, 7))
-    gradient = restoration.total_variation_gradient(x, 0.1)
+    gradient = restoration.penalty_gradient(x, 0.1, edge)
     h = 1e-6
     numeric = np.zeros_like(x)
     for index in np.ndindex(x.shape):
         step = np.zeros_like(x)
         step[index] = h
-        numeric[index] = (_total_variation(x + step, 0.1) - _total_variation(x - step, 0.1)) / (2 * h)
+        numeric[index] = (_penalty(x + step, 0.1, edge) - _penalty(x - step, 0.1, edge)) / (2 * h)
     np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-7)
+
+
+def test_the_penalty_keeps_a_crease_and_flattens_ripples():
+    """Where the gradient is far above ``edge`` the pull is far weaker than on a small ripple."""
+    x = np.zeros((1, 4, 8))
+    x[0, :, 4:] = 1.0  # a crease between columns 3 and 4
+    x[0, :, 1] += 0.01  # a ripple
+    g = restoration.penalty_gradient(x, 1e-4, 0.05)
+    assert abs(g[0, 1, 3]) < 0.1 * abs(g[0, 1, 1])
 
 
 def test_iterations_stay_consistent_with_the_bins(edge_image):
@@ -71,8 +82,9 @@ def test_iterations_stay_consistent_with_the_bins(edge_image):
     c = analysis(x)
     assert np.all((c >= low - 1e-9) & (c <= high + 1e-9))
     assert not np.allclose(x, first)
-    # Smoother than where it started: the total variation went down.
-    assert _total_variation(x[None], 1e-9) < _total_variation(first[None], 1e-9)
+    # Smoother than where it started: the penalty went down.
+    t_edge = restoration.EDGE * t
+    assert _penalty(x[None], 1e-9, t_edge) < _penalty(first[None], 1e-9, t_edge)
 
 
 def test_restoration_improves_a_crease_map_at_no_cost(crease_map):

@@ -24,8 +24,9 @@ Layout (little endian)::
 A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
 coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
 (format version 2; version 1 always coded three channels). Format version 3 added the
-restoration byte; version 4 restores a normal map coded with its three channels on the unit
-sphere (:func:`bandelets.restoration.iterate`). This build reads version 4 only.
+restoration byte; version 4 changed the restoration's penalty (a log total variation instead of
+the total variation) and restores a normal map coded with its three channels on the unit sphere
+(:mod:`bandelets.restoration`). This build reads version 4 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -91,7 +92,7 @@ _DECODE_PER_PIXEL, _DECODE_PER_SAMPLE = 48, 32
 # Local frames (geometry images) add the surface of the coarser levels and its frames: 256 x 256
 # and 512 x 512 peak at 153 B/pixel against 119 B/pixel without.
 _DECODE_FRAMES_PER_PIXEL = 48
-# The restoration (bin bounds, the total variation's gradient) peaks at 85 B/pixel for 512 x 512 x 1
+# The restoration (bin bounds, the penalty's gradient) peaks at 85 B/pixel for 512 x 512 x 1
 # and 1024 x 1024 x 1, 237 B/pixel for 512 x 512 x 3, against 54 and 90 without.
 _DECODE_RESTORATION_PER_SAMPLE = 56
 _ENCODE_FIXED, _ENCODE_PER_SAMPLE = 160 * 2**20, 96

@@ -1,25 +1,32 @@
-"""Decoder-side restoration: the decoded image of least total variation consistent with the file.
+"""Decoder-side restoration: a decoded image with sparser gradients, consistent with the file.
 
 Not a step of the paper. Dequantizing each coefficient to one point of its bin (step (8))
 leaves ringing along every crease: that is most of the error of a wavelet coder, bandelets
 included, on CAD normal maps. But the file says more than those points: each coefficient
 lies somewhere in its quantization bin. Among all images whose bandelet coefficients fall in
 their bins (all equally consistent with the file), a piecewise smooth surface is better
-guessed by one of small total variation (consistent reconstruction, in the spirit of Durand
-and Froment's total-variation reconstruction of wavelet coefficients, 2003). So the decoder
-alternates a gradient step on the total variation, coupled over the channels so that the
-creases of all channels stay at the same place, with the projection of every coefficient
-back into its bin, starting from the plain dequantized image, with momentum.
+guessed by one whose gradient is sparse: flat or smooth almost everywhere, with a few sharp
+creases (consistent reconstruction, in the spirit of Durand and Froment's total-variation
+reconstruction of wavelet coefficients, 2003). So the decoder alternates a gradient step on
+a sparsity penalty of the image gradient, coupled over the channels so that the creases of
+all channels stay at the same place, with the projection of every coefficient back into its
+bin, starting from the plain dequantized image, with momentum.
+
+The penalty is a log total variation, ``sum e log(1 + |grad x| / e)`` with ``e = EDGE T``
+(the total variation reweighted by ``e / (e + |grad x|)``, as in Candes, Wakin and Boyd's
+reweighted l1): small gradients, the ringing, are flattened as by the total variation, while
+gradients well above ``e``, the creases, are hardly touched. On the crease map this restores
+0.7 to 1.8 dB more than the plain total variation (``benchmarks/restoration_gain.py``).
 
 How many steps is the encoder's choice: it runs the same iterations, measures the error
 against the original after each, and writes the best count into the file (0: off, e.g. on
-smooth surfaces, where the total variation has nothing to sharpen). It costs no bits and,
-since the encoder measures before it chooses, never decodes worse than plain dequantization.
-Each iteration costs an analysis and a synthesis of every channel.
+smooth surfaces, where there is nothing to sharpen). It costs no bits and, since the encoder
+measures before it chooses, never decodes worse than plain dequantization. Each iteration
+costs an analysis and a synthesis of every channel.
 
-Written here (numpy, and a compiled loop for the gradient) because no library offers a
-total-variation reconstruction constrained in an arbitrary (here bandelet) basis:
-scikit-image's and scipy's TV denoisers solve the unconstrained problem in the pixel domain.
+Written here (numpy, and a compiled loop for the gradient) because no library offers such a
+reconstruction constrained in an arbitrary (here bandelet) basis: scikit-image's and scipy's
+total-variation denoisers solve the unconstrained problem in the pixel domain.
 """
 
 from __future__ import annotations
@@ -31,14 +38,17 @@ from numba import njit
 
 from .quantize import PROMOTE_ABOVE, dequantize
 
-__all__ = ["STEP", "SMOOTHING", "MAX_ITERATIONS", "bin_bounds", "total_variation_gradient", "iterate"]
+__all__ = ["STEP", "SMOOTHING", "EDGE", "MAX_ITERATIONS", "bin_bounds", "penalty_gradient", "iterate"]
 
-#: Gradient step on the total variation, in units of ``T`` per iteration (each sample moves by
+#: Gradient step on the penalty, in units of ``T`` per iteration (each sample moves by
 #: at most about 4 STEP T per step): small enough that the count chosen by the encoder is not
 #: a knife edge, large enough to converge in a few dozen iterations.
 STEP = 0.01
-#: Smoothing of the total variation's corner, ``sqrt(|grad|**2 + (SMOOTHING T)**2)``.
+#: Smoothing of the penalty's corner, ``|grad|`` stands for ``sqrt(|grad|**2 + (SMOOTHING T)**2)``.
 SMOOTHING = 0.01
+#: Gradient magnitude, in units of ``T``, above which the penalty grows only logarithmically:
+#: what is sharper is taken for a crease and kept.
+EDGE = 0.5
 #: Most iterations a file may ask for (its header stores the count in one byte).
 MAX_ITERATIONS = 100
 #: What the encoder's rate-distortion optimised quantization may do to a value (see
@@ -73,29 +83,31 @@ def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]
     return np.where(negative, -high, low), np.where(negative, -low, high)
 
 
-def total_variation_gradient(x: np.ndarray, smoothing: float) -> np.ndarray:
-    """Gradient of the vectorial total variation ``sum sqrt(sum_c |grad x_c|**2 + smoothing**2)``.
+def penalty_gradient(x: np.ndarray, smoothing: float, edge: float) -> np.ndarray:
+    """Gradient of the vectorial log total variation ``sum edge log(1 + n / edge)``, where
+    ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every pixel.
 
-    Forward differences, zero past the last row and column.
+    Forward differences, zero past the last row and column. For ``n`` much below ``edge`` it is
+    the gradient of the total variation ``sum n``; above, the pull fades as ``edge / n``.
 
     Parameters
     ----------
     x : ndarray, shape (C, H, W), H, W >= 2
         Channels; their gradients share one norm per pixel (one crease for all channels).
-    smoothing : float
+    smoothing, edge : float
         > 0, in the units of ``x``.
 
     Returns
     -------
     ndarray, shape (C, H, W)
     """
-    return _gradient(np.ascontiguousarray(x, dtype=np.float64), float(smoothing))
+    return _gradient(np.ascontiguousarray(x, dtype=np.float64), float(smoothing), float(edge))
 
 
 @njit(cache=True)
-def _gradient(x, smoothing):
+def _gradient(x, smoothing, edge):
     channels, rows, cols = x.shape
-    # Pass 1: one over the norm of the joint gradient at every pixel.
+    # Pass 1: the weight of the joint gradient at every pixel, d(penalty)/dn / n.
     inverse = np.empty((rows, cols))
     for i in range(rows):
         for j in range(cols):
@@ -104,8 +116,9 @@ def _gradient(x, smoothing):
                 dx = x[c, i, j + 1] - x[c, i, j] if j + 1 < cols else 0.0
                 dy = x[c, i + 1, j] - x[c, i, j] if i + 1 < rows else 0.0
                 s += dx * dx + dy * dy
-            inverse[i, j] = 1.0 / np.sqrt(s)
-    # Pass 2: minus the divergence of the normalised gradient field.
+            n = np.sqrt(s)
+            inverse[i, j] = edge / (n * (edge + n))
+    # Pass 2: minus the divergence of the weighted gradient field.
     out = np.empty_like(x)
     for c in range(channels):
         for i in range(rows):
@@ -162,7 +175,7 @@ def iterate(
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
     ahead, t = x.copy(), 1.0
     while True:
-        ahead -= (STEP * threshold) * total_variation_gradient(ahead, SMOOTHING * threshold)
+        ahead -= (STEP * threshold) * penalty_gradient(ahead, SMOOTHING * threshold, EDGE * threshold)
         if unit_vectors is not None:
             v = ahead[:, : unit_vectors[0], : unit_vectors[1]]
             v /= np.maximum(np.sqrt(np.sum(v * v, axis=0)), _SHORTEST)
