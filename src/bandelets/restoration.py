@@ -16,7 +16,8 @@ The penalty is a log total variation, ``sum e log(1 + |grad x| / e)`` with ``e =
 (the total variation reweighted by ``e / (e + |grad x|)``, as in Candes, Wakin and Boyd's
 reweighted l1): small gradients, the ringing, are flattened as by the total variation, while
 gradients well above ``e``, the creases, are hardly touched. On the crease map this restores
-0.7 to 1.8 dB more than the plain total variation (``benchmarks/restoration_gain.py``).
+0.8 to 2.1 dB more than the plain total variation at 0.25 to 2 bpp
+(``benchmarks/restoration_gain.py --edge 1e9`` for the latter).
 
 How many steps is the encoder's choice: it runs the same iterations, measures the error
 against the original after each, and writes the best count into the file (0: off, e.g. on
