@@ -228,8 +228,8 @@ def encode_mesh(
     restore : bool
         Without local frames only: let the decoder restore the image
         (:mod:`bandelets.restoration`). Off by default: it lowers the L2 error of the positions
-        a little but slides points along the surface, and the Hausdorff PSNR drops by 0 to
-        0.3 dB (variant ``no-frames-restored`` of benchmarks/rd_meshes.py).
+        a little but slides points along the surface, and the Hausdorff PSNR gains nothing or
+        drops by up to 0.2 dB (variant ``no-frames-restored`` of benchmarks/rd_meshes.py).
     image : ndarray of float, shape (n, n, 3), optional
         The geometry image to code, if already made (:func:`make_geometry_image`); it fixes
         the size.
