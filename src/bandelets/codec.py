@@ -802,8 +802,9 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
         return encoded
     trees, quantized = _decoded_bins(header, streams)
     best, best_psnr = 0, -np.inf
+    measure = metrics.psnr_against(reference, header.kind)
     for n, channels in enumerate(_restorations(header, trees, quantized)):
-        value = metrics.psnr(reference, _output(channels, header), header.kind)
+        value = measure(_output(channels, header))
         if value > best_psnr:
             best, best_psnr = n, value
         if n == restoration.MAX_ITERATIONS or n - best >= _RESTORATION_PATIENCE:

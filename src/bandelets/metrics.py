@@ -6,9 +6,11 @@ with its source.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "peak", "unit_vectors"]
+__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "psnr_against", "peak", "unit_vectors"]
 
 
 def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
@@ -18,7 +20,8 @@ def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
 
 def unit_vectors(vectors: np.ndarray) -> np.ndarray:
     """Vectors (last axis) scaled to unit length; zero vectors become +z."""
-    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    # einsum: less than half the time of np.linalg.norm on short vectors.
+    norm = np.sqrt(np.einsum("...c,...c->...", vectors, vectors))[..., None]
     out = vectors / np.where(norm > 0, norm, 1.0)
     out[..., 2] = np.where(norm[..., 0] > 0, out[..., 2], 1.0)
     return out
@@ -47,12 +50,23 @@ def psnr(reference: np.ndarray, decoded: np.ndarray, kind: str = "image") -> flo
     For a normal map both arrays are compared after renormalising the reference to unit
     vectors (the decoder already renormalises), as the paper measures.
     """
+    return psnr_against(reference, kind)(decoded)
+
+
+def psnr_against(reference: np.ndarray, kind: str = "image") -> Callable[[np.ndarray], float]:
+    """:func:`psnr` of any decoded array against ``reference``, which is prepared once (the
+    encoder measures every restoration iteration)."""
     reference = np.asarray(reference, np.float64)
-    decoded = np.asarray(decoded, np.float64).reshape(reference.shape)
     if kind == "normal-map":
         reference = unit_vectors(reference)
-    rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
-    return float("inf") if rmse == 0 else 20.0 * np.log10(peak(reference, kind) / rmse)
+    top = peak(reference, kind)
+
+    def measure(decoded: np.ndarray) -> float:
+        decoded = np.asarray(decoded, np.float64).reshape(reference.shape)
+        rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
+        return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
+
+    return measure
 
 
 def bd_psnr(rates_a, psnrs_a, rates_b, psnrs_b) -> float:
