@@ -159,7 +159,7 @@ def iterate(
         The three channels are the components of unit vectors over their first ``h`` rows and
         ``w`` columns (a normal map coded with its z): each step also brings those vectors
         back to unit length before the projection into the bins (+0.2 to +0.4 dB on the
-        fandisk normal map at 0.25 to 1 bpp).
+        fandisk normal map at 0.25 to 1 bpp, measured with the plain total variation).
 
     Yields
     ------
@@ -179,7 +179,8 @@ def iterate(
         ahead -= (STEP * threshold) * penalty_gradient(ahead, SMOOTHING * threshold, EDGE * threshold)
         if unit_vectors is not None:
             v = ahead[:, : unit_vectors[0], : unit_vectors[1]]
-            v /= np.maximum(np.sqrt(np.sum(v * v, axis=0)), _SHORTEST)
+            norm = np.sqrt(np.sum(v * v, axis=0))
+            v *= np.where(norm > _SHORTEST, 1.0 / np.maximum(norm, _SHORTEST), 1.0)
         for c, (low, high) in enumerate(bounds):
             ahead[c] = synthesis(np.clip(analysis(ahead[c]), low, high))
         t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
