@@ -14,7 +14,6 @@ import json
 import os
 import sys
 import warnings
-from dataclasses import replace
 from pathlib import Path
 
 __all__ = ["main"]
@@ -216,8 +215,7 @@ def _decode(args) -> None:
     _check_output(args.input, args.output, args.force)
     with _about(args.input):
         header, streams = unpack(_read_bdl(args.input))
-        kept = replace(header, restoration=0) if args.no_restore else header
-        decoded = decode_parsed(kept, streams)
+        decoded = decode_parsed(header, streams, restore=not args.no_restore)
     write_array(args.output, decoded, header.kind, header.depth)
 
 

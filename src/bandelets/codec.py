@@ -512,15 +512,19 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
         For any corrupt, truncated or unsupported file.
     """
     header, streams = unpack(bytes(data), **limits)
-    if not restore:
-        header = replace(header, restoration=0)
-    return decode_parsed(header, streams, max_memory=max_memory)
+    return decode_parsed(header, streams, restore=restore, max_memory=max_memory)
 
 
 def decode_parsed(
-    header: Header, streams: tuple[bytes, bytes, bytes], *, max_memory: int = MAX_MEMORY
+    header: Header,
+    streams: tuple[bytes, bytes, bytes],
+    *,
+    restore: bool = True,
+    max_memory: int = MAX_MEMORY,
 ) -> np.ndarray:
-    """Decode a file already split by :func:`bandelets.bitstream.unpack`."""
+    """Decode a file already split by :func:`bandelets.bitstream.unpack` (options of :func:`decode`)."""
+    if not restore:
+        header = replace(header, restoration=0)
     check_memory(header, max_memory)
     trees, quantized = _decoded_bins(header, streams)
     if header.frames:
