@@ -72,7 +72,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--no-restore",
         action="store_true",
-        help="decode by plain dequantization: no total-variation restoration (faster to encode and decode)",
+        help="decode by plain dequantization: no restoration by the decoder (faster to encode and decode)",
     )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
