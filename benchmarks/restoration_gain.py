@@ -8,12 +8,14 @@ one. Surfaces: the generated crease and bumps normal maps (bandelets, CDF 9/7) a
 ``../shared/data/meshes`` is there, the normal map of fandisk's 256 x 256 geometry image.
 
     python benchmarks/restoration_gain.py [--size 256] [--rates 0.25,0.5,1,2] [--meshes DIR]
-        [--edge E] [--step S]
+        [--edge E] [--step S] [--second-order W] [--second-edge E2]
 
-``--edge`` and ``--step`` replace :data:`bandelets.restoration.EDGE` and ``STEP`` for this run
+``--edge``, ``--step``, ``--second-order`` and ``--second-edge`` replace
+:data:`bandelets.restoration.EDGE`, ``STEP``, ``SECOND_ORDER`` and ``SECOND_EDGE`` for this run
 (encoder and decoder alike), to measure other choices of the decoder's constants; files made
-that way are not .bdl files any other build decodes the same. ``--edge 1e9`` is the plain
-total variation.
+that way are not .bdl files any other build decodes the same. ``--second-order 0 --edge 0.5``
+is the log total variation of format version 4, ``--second-order 0 --edge 1e9`` the plain total
+variation of version 3.
 """
 
 from __future__ import annotations
@@ -54,9 +56,17 @@ def main() -> None:
     parser.add_argument("--meshes", type=Path, default=Path(__file__).parents[2] / "shared/data/meshes")
     parser.add_argument("--edge", type=float, default=restoration.EDGE, help="EDGE, in units of T")
     parser.add_argument("--step", type=float, default=restoration.STEP, help="STEP, in units of T")
+    parser.add_argument("--second-order", type=float, default=restoration.SECOND_ORDER, help="SECOND_ORDER")
+    parser.add_argument(
+        "--second-edge", type=float, default=restoration.SECOND_EDGE, help="SECOND_EDGE, in units of T"
+    )
     args = parser.parse_args()
     restoration.EDGE, restoration.STEP = args.edge, args.step
-    print(f"EDGE {args.edge:g} T, STEP {args.step:g} T")
+    restoration.SECOND_ORDER, restoration.SECOND_EDGE = args.second_order, args.second_edge
+    print(
+        f"EDGE {args.edge:g} T, STEP {args.step:g} T, "
+        f"SECOND_ORDER {args.second_order:g}, SECOND_EDGE {args.second_edge:g} T"
+    )
     rates = [float(r) for r in args.rates.split(",")]
     columns = f"{'target':>6} {'bytes':>6} {'plain':>7} {'restored':>8} {'gain':>6} {'iter':>4}  decode"
     print(f"{'surface':<16} {columns}")

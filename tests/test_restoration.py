@@ -32,24 +32,52 @@ def test_bins_hold_the_values_they_came_from(rng):
         assert np.all((low <= r) & (r <= high))
 
 
-def _penalty(x, smoothing, edge):
-    dx = np.diff(x, axis=2, append=x[:, :, -1:])
-    dy = np.diff(x, axis=1, append=x[:, -1:, :])
-    n = np.sqrt(np.sum(dx**2 + dy**2, axis=0) + smoothing**2)
+def _log_penalty(squared_norm, smoothing, edge):
+    n = np.sqrt(squared_norm + smoothing**2)
     return np.sum(edge * np.log1p(n / edge))
 
 
-@pytest.mark.parametrize("edge", [0.05, 1e6])  # a log total variation; the total variation
-def test_penalty_gradient_is_the_derivative(rng, edge):
+def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0):
+    """The restoration penalty written plainly with numpy, from its definition."""
+    dx = np.diff(x, axis=2, append=x[:, :, -1:])
+    dy = np.diff(x, axis=1, append=x[:, -1:, :])
+    first = _log_penalty(np.sum(dx**2 + dy**2, axis=0), smoothing, edge)
+    xx, yy, xy = (np.zeros_like(x) for _ in range(3))
+    xx[:, :, 1:-1] = np.diff(x, 2, axis=2)
+    yy[:, 1:-1, :] = np.diff(x, 2, axis=1)
+    xy[:, :-1, :-1] = np.diff(np.diff(x, axis=1), axis=2)
+    second = _log_penalty(np.sum(xx**2 + yy**2 + 2 * xy**2, axis=0), smoothing, second_edge)
+    return first + second_order * second
+
+
+# A log total variation; the total variation; each with a log penalty on the second differences.
+@pytest.mark.parametrize("edge, second_order", [(0.05, 0.0), (1e6, 0.0), (0.05, 0.3), (1e6, 2.0)])
+def test_penalty_gradient_is_the_derivative(rng, edge, second_order):
     x = rng.random((2, 5, 7))
-    gradient = restoration.penalty_gradient(x, 0.1, edge)
+    gradient = restoration.penalty_gradient(x, 0.1, edge, second_order, 0.2)
     h = 1e-6
     numeric = np.zeros_like(x)
     for index in np.ndindex(x.shape):
         step = np.zeros_like(x)
         step[index] = h
-        numeric[index] = (_penalty(x + step, 0.1, edge) - _penalty(x - step, 0.1, edge)) / (2 * h)
+        up, down = (_penalty(x + s, 0.1, edge, second_order, 0.2) for s in (step, -step))
+        numeric[index] = (up - down) / (2 * h)
     np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-7)
+
+
+def test_the_second_order_term_prefers_constant_slopes():
+    """A ramp costs the second-order term nothing; the same ramp bent in the middle costs it."""
+
+    def second_order_gradient(x):
+        return restoration.penalty_gradient(x, 1e-4, 1e6, 1.0, 0.05) - restoration.penalty_gradient(
+            x, 1e-4, 1e6
+        )
+
+    ramp = np.broadcast_to(np.arange(8.0) * 0.1, (1, 4, 8)).copy()
+    assert np.abs(second_order_gradient(ramp)).max() < 1e-9
+    bent = ramp.copy()
+    bent[:, :, 4:] += 0.05 * np.arange(4)
+    assert np.abs(second_order_gradient(bent)).max() > 0.1
 
 
 def test_the_penalty_keeps_a_crease_and_flattens_ripples():
@@ -83,8 +111,8 @@ def test_iterations_stay_consistent_with_the_bins(edge_image):
     assert np.all((c >= low - 1e-9) & (c <= high + 1e-9))
     assert not np.allclose(x, first)
     # Smoother than where it started: the penalty went down.
-    t_edge = restoration.EDGE * t
-    assert _penalty(x[None], 1e-9, t_edge) < _penalty(first[None], 1e-9, t_edge)
+    constants = (restoration.EDGE * t, restoration.SECOND_ORDER, restoration.SECOND_EDGE * t)
+    assert _penalty(x[None], 1e-9, *constants) < _penalty(first[None], 1e-9, *constants)
 
 
 def test_restoration_improves_a_crease_map_at_no_cost(crease_map):

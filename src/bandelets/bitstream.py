@@ -26,7 +26,8 @@ coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^
 (format version 2; version 1 always coded three channels). Format version 3 added the
 restoration byte; version 4 changed the restoration's penalty (a log total variation instead of
 the total variation) and restores a normal map coded with its three channels on the unit sphere
-(:mod:`bandelets.restoration`). This build reads version 4 only.
+(:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty. This build
+reads version 5 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -71,7 +72,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
 #: Largest side and sample count a decoder accepts by default.
