@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, pack, unpack
+from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, implied_options, pack, unpack
+from bandelets.frames import NORMAL_MAP_WEIGHT
 
 HEADER_SIZE = 41  # fixed fields, before the streams
 GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields
@@ -55,7 +56,8 @@ def test_format_error_is_a_value_error():
     [
         Header(24, 40, 1, "image", "bandelet", "cdf97", 2, 0.08, 0, "alpert2"),
         Header(16384, 3, 3, "geometry-image", "wavelet", "db8", 6, 1e-9, 16, "haar"),
-        Header(1, 2, 3, "normal-map", "bandelet", "haar", 1, 12.5, 8, "alpert2"),
+        Header(1, 2, 2, "normal-map", "bandelet", "haar", 1, 12.5, 8, "alpert2"),
+        Header(3, 2, 3, "normal-map", "wavelet", "cdf97", 1, 0.5, 0, "haar", frames=True, normal_weight=0.35),
         Header(
             64, 64, 3, "geometry-image", "bandelet", "cdf97", 6, 0.01, 0, "alpert2", "spherical", True, 2.5
         ),
@@ -71,6 +73,19 @@ def test_header_round_trip(header):
     got, got_streams = unpack(data)
     assert got == header
     assert got_streams == streams
+
+
+def test_options_a_file_does_not_store_must_be_the_implied_ones():
+    """A normal map of three channels is always coded in local frames of weight NORMAL_MAP_WEIGHT,
+    any other kind but a geometry image never: the header cannot say otherwise."""
+    assert implied_options("normal-map", 3) == {"frames": True, "normal_weight": NORMAL_MAP_WEIGHT}
+    for header in (
+        Header(8, 8, 3, "normal-map", "bandelet", "cdf97", 1, 0.1),
+        Header(8, 8, 2, "normal-map", "bandelet", "cdf97", 1, 0.1, frames=True),
+        Header(8, 8, 1, "image", "bandelet", "cdf97", 1, 0.1, extension="spherical"),
+    ):
+        with pytest.raises(ValueError, match="no choice"):
+            pack(header, (b"", b"", b""))
 
 
 def test_bad_magic(small_file):
@@ -265,11 +280,6 @@ def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, v
 def test_normal_weight_without_frames_is_a_format_error(geometry_file):
     with pytest.raises(FormatError, match="without local frames"):
         bandelets.decode(_patched(geometry_file, HEADER_SIZE + 1, "<B", 0))
-
-
-def test_restoration_with_local_frames_is_a_format_error(geometry_file):
-    with pytest.raises(FormatError, match="restoration with local frames"):
-        bandelets.decode(_patched(geometry_file, 40, "<B", 3))
 
 
 def test_geometry_file_truncated_in_its_options(geometry_file):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import frames
+from bandelets import frames, metrics
 from bandelets.bitstream import unpack
 from bandelets.codec import encode_with_stats
 from bandelets.surfaces import octahedral
@@ -70,6 +70,50 @@ def test_a_warped_tilted_plane_has_no_normal_details(rng):
     frames.to_global(local, "cdf97", levels, "symmetric", 3.0)
     for b, c in zip(local, coefficients, strict=True):
         np.testing.assert_allclose(b, c, rtol=0, atol=1e-12)
+
+
+def _sphere_normals(side: int) -> np.ndarray:
+    """Unit normals facing every way: those of the octahedral sphere, bumped."""
+    p = _bumpy_sphere(side)
+    return p / np.linalg.norm(p, axis=-1, keepdims=True)
+
+
+def test_normal_map_frames_are_orthonormal_around_the_normals(rng):
+    normals = rng.normal(size=(50, 3)) * rng.uniform(0.1, 3.0, size=(50, 1))
+    normals[:3] = [[1.0, 0.0, 0.0], [-2.0, 1e-5, 0.0], [0.0, 0.0, 0.0]]  # along x; zero
+    f = frames.normal_map_frames(normals)
+    eye = np.einsum("...ij,...kj->...ik", f, f)
+    np.testing.assert_allclose(eye, np.broadcast_to(np.eye(3), eye.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(f), 1.0, atol=1e-12)
+    np.testing.assert_allclose(f[3:, 0], normals[3:] / np.linalg.norm(normals[3:], axis=-1, keepdims=True))
+    np.testing.assert_array_equal(f[2, 0], [0.0, 0.0, 1.0])
+
+
+def test_the_details_of_a_normal_map_are_nearly_tangent():
+    """In the frames of the coarse normals, the normal component of the details is a small
+    fraction of the tangential ones (second order), and turning back restores them all."""
+    normals = _sphere_normals(64)
+    levels = 3
+    coefficients = [wavedec(normals[..., k], "cdf97", levels) for k in range(3)]
+    local = [c.copy() for c in coefficients]
+    for level in range(levels, 0, -1):
+        frame = frames.level_frames(coefficients, level, "cdf97", levels, "symmetric", "normal-map")
+        frames.rotate(local, frame, level, levels, 1.0, local=True)
+    details = np.ones(normals.shape[:2], bool)
+    details[: 64 >> levels, : 64 >> levels] = False
+    energy = [np.sum(c[details] ** 2) for c in local]
+    assert energy[0] < 0.05 * (energy[1] + energy[2])
+    frames.to_global(local, "cdf97", levels, "symmetric", 1.0, "normal-map")
+    for b, c in zip(local, coefficients, strict=True):
+        np.testing.assert_allclose(b, c, rtol=0, atol=1e-12)
+
+
+def test_normal_maps_of_three_channels_are_coded_in_local_frames():
+    normals = _sphere_normals(64)
+    data = bandelets.encode(normals, bpp=1.0, kind="normal-map")
+    header = unpack(data)[0]
+    assert (header.channels, header.frames, header.normal_weight) == (3, True, frames.NORMAL_MAP_WEIGHT)
+    assert metrics.psnr(normals, bandelets.decode(data), "normal-map") > 35
 
 
 @pytest.mark.parametrize("transform", ["bandelet", "wavelet"])
@@ -144,9 +188,12 @@ def test_memory_estimate_covers_the_decoding_with_frames():
     data = bandelets.encode(
         _bumpy_sphere(128), bpp=2.0, kind="geometry-image", frames=True, transform="wavelet"
     )
-    bandelets.decode(data)
-    tracemalloc.start()
-    bandelets.decode(data)
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    assert peak <= decoder_memory(128, 128, 3, unpack(data)[0].levels, frames=True)
+    header = unpack(data)[0]
+    assert header.restoration > 0
+    for restore in (False, True):
+        bandelets.decode(data, restore=restore)
+        tracemalloc.start()
+        bandelets.decode(data, restore=restore)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert peak <= decoder_memory(128, 128, 3, header.levels, frames=True, restoration=restore)

@@ -20,7 +20,16 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets.bitstream import MAX_MEMORY, FormatError, Header, decoder_memory, encoder_memory, pack, unpack
+from bandelets.bitstream import (
+    MAX_MEMORY,
+    FormatError,
+    Header,
+    decoder_memory,
+    encoder_memory,
+    implied_options,
+    pack,
+    unpack,
+)
 
 DATA = Path(__file__).resolve().parent / "data"
 GOLDEN = sorted(DATA.glob("*.bdl"))
@@ -117,10 +126,12 @@ def test_valid_header_with_absurd_sizes_and_tiny_streams(height, width, channels
     """A 100-byte file claiming a huge image is refused at once by the memory estimate."""
     kind = "image" if channels != 3 else "normal-map"
     levels = 1
-    header = Header(height, width, channels, kind, "bandelet", "cdf97", levels, 0.1)
+    header = Header(
+        height, width, channels, kind, "bandelet", "cdf97", levels, 0.1, **implied_options(kind, channels)
+    )
     data = pack(header, (b"\x00" * 20, b"\x00" * 20, b"\x00" * 20))
     start = time.perf_counter()
-    need = decoder_memory(height, width, channels, levels)
+    need = decoder_memory(height, width, channels, levels, header.frames)
     if need > MAX_MEMORY:
         with pytest.raises(FormatError, match=r"needs about \d+ MiB, above the limit of 2048 MiB"):
             bandelets.decode(data)

@@ -95,19 +95,19 @@ def test_iterations_stay_consistent_with_the_bins(edge_image):
     t = 0.05
 
     def analysis(x):
-        return wavedec(x, "db4", 3)
+        return wavedec(x[0], "db4", 3)[None]
 
     def synthesis(c):
-        return waverec(c, "db4", 3)
+        return waverec(c[0], "db4", 3)[None]
 
-    q = quantize(analysis(edge_image), t)
+    q = quantize(analysis(edge_image[None])[0], t)
     low, high = restoration.bin_bounds(q, t)
     steps = restoration.iterate([q], t, analysis, synthesis)
     first = next(steps)[0].copy()
-    np.testing.assert_allclose(first, synthesis(dequantize(q, t)))
+    np.testing.assert_allclose(first, synthesis(dequantize(q, t)[None])[0])
     for _ in range(5):
         x = next(steps)[0]
-    c = analysis(x)
+    c = analysis(x[None])[0]
     assert np.all((c >= low - 1e-9) & (c <= high + 1e-9))
     assert not np.allclose(x, first)
     # Smoother than where it started: the penalty went down.
@@ -137,7 +137,7 @@ def test_three_channel_normal_maps_are_restored_on_the_sphere(crease_map):
     header, streams = unpack(data)
     assert header.channels == 3
     trees, quantized = codec._decoded_bins(header, streams)
-    transforms = codec._transforms(header, trees)
+    transforms = codec._transforms(header, trees, quantized)
 
     def best(unit_vectors):
         steps = restoration.iterate(quantized, header.threshold, *transforms, unit_vectors=unit_vectors)
@@ -161,11 +161,24 @@ def test_the_encoder_never_picks_a_worse_restoration(rng, kind):
         assert restored >= metrics.psnr(reference, bandelets.decode(plain), kind)
 
 
-def test_no_restoration_with_local_frames():
+def test_files_with_local_frames_are_restored_in_their_frames():
+    """The bins hold the coefficients turned into the local frames: each step keeps the restored
+    image's coefficients, turned the same way, in them; step 0 is the plain decoding."""
     v, u = np.mgrid[0:32, 0:32] / 31.0
     surface = np.stack([np.cos(3 * u), np.sin(2 * v), u * v], axis=-1)
-    data = bandelets.encode(surface, bpp=4.0, kind="geometry-image", frames=True)
-    assert unpack(data)[0].restoration == 0
+    data = bandelets.encode(surface, bpp=4.0, kind="geometry-image", frames=True, restore=False)
+    header, streams = unpack(data)
+    assert header.frames
+    trees, quantized = codec._decoded_bins(header, streams)
+    analysis, synthesis = codec._transforms(header, trees, quantized)
+    steps = restoration.iterate(quantized, header.threshold, analysis, synthesis)
+    np.testing.assert_array_equal(codec._output(next(steps), header), bandelets.decode(data))
+    for _ in range(5):
+        x = next(steps)
+    c = analysis(x)
+    for k, q in enumerate(quantized):
+        low, high = restoration.bin_bounds(q, header.threshold)
+        assert np.all((c[k] >= low - 1e-9) & (c[k] <= high + 1e-9))
 
 
 def test_psnr_target_counts_the_restoration(crease_map):

@@ -26,8 +26,10 @@ coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^
 (format version 2; version 1 always coded three channels). Format version 3 added the
 restoration byte; version 4 changed the restoration's penalty (a log total variation instead of
 the total variation) and restores a normal map coded with its three channels on the unit sphere
-(:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty. This build
-reads version 5 only.
+(:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty, codes a
+normal map of three channels in local frames around its coarser normals (implied by the kind and
+the channel count, weight :data:`bandelets.frames.NORMAL_MAP_WEIGHT`: no header field) and lets
+files with local frames be restored. This build reads version 5 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -46,11 +48,12 @@ from __future__ import annotations
 
 import struct
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .bandeletize import TRANSFORMS_1D
+from .frames import NORMAL_MAP_WEIGHT
 from .restoration import MAX_ITERATIONS
 from .wavelets import EXTENSIONS, MAX_LEVELS, WAVELETS, padded_shape
 
@@ -90,7 +93,7 @@ MAX_MEMORY = 2 * 2**30
 # to 32 x 32, plus 59 B/sample), 213 MiB for 1024 x 1024 x 3; a bpp target (rate control)
 # peaks no higher than a fixed threshold (512 x 512 x 3, 170 MiB). The estimate rounds up.
 _DECODE_PER_PIXEL, _DECODE_PER_SAMPLE = 48, 32
-# Local frames (geometry images) add the surface of the coarser levels and its frames: 256 x 256
+# Local frames add the surface of the coarser levels and its frames: 256 x 256
 # and 512 x 512 peak at 153 B/pixel against 119 B/pixel without.
 _DECODE_FRAMES_PER_PIXEL = 48
 # The restoration (bin bounds, the penalty's gradient) peaks at 85 B/pixel for 512 x 512 x 1
@@ -126,12 +129,21 @@ class Header:
     threshold: float
     depth: int = 0
     transform_1d: str = "alpert2"
-    # Geometry images only (the defaults for any other kind):
+    # Geometry images (the defaults for any other kind, except frames with NORMAL_MAP_WEIGHT for a
+    # normal map of three channels):
     extension: str = "symmetric"
     frames: bool = False
     normal_weight: float = 1.0
     #: Iterations of :func:`bandelets.restoration.iterate` the decoder runs (0: none).
     restoration: int = 0
+
+
+def implied_options(kind: str, channels: int) -> dict:
+    """The fields of :class:`Header` that the file does not store for ``kind`` (any kind but a
+    geometry image) and ``channels``: local frames for a normal map of three channels."""
+    if kind == "normal-map" and channels == 3:
+        return {"frames": True, "normal_weight": NORMAL_MAP_WEIGHT}
+    return {}
 
 
 def decoder_memory(
@@ -190,6 +202,17 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         *(len(s) for s in streams),
         header.restoration,
     )
+    if header.kind != "geometry-image":  # its options are not stored, so they must be the implied ones
+        defaults = {
+            "extension": Header.extension,
+            "frames": Header.frames,
+            "normal_weight": Header.normal_weight,
+        }
+        if header != replace(header, **(defaults | implied_options(header.kind, header.channels))):
+            raise ValueError(
+                f"a {header.kind} of {header.channels} channels has no choice of extension, frames or "
+                f"normal weight: {header}"
+            )
     if header.kind == "geometry-image":
         body += _GEOMETRY.pack(EXTENSIONS.index(header.extension), int(header.frames), header.normal_weight)
     body += b"".join(streams)
@@ -265,8 +288,8 @@ def unpack(
     options = {}
     if KINDS[kind] == "geometry-image":
         options = _geometry_options(data, WAVELETS[wavelet], levels, height, width)
-        if options["frames"] and restoration:
-            raise FormatError("corrupt .bdl file: restoration with local frames")
+    else:
+        options = implied_options(KINDS[kind], channels)
     header = Header(
         height,
         width,

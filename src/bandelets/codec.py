@@ -348,6 +348,11 @@ def _geometry_options(
     return {"extension": extension, "frames": bool(frames), "normal_weight": float(weight) if frames else 1.0}
 
 
+#: Header fields of a normal map coded with its three channels: always in local frames
+#: (:mod:`bandelets.frames`).
+_NORMAL_MAP_FRAMES = {"frames": True, "normal_weight": frames.NORMAL_MAP_WEIGHT}
+
+
 @dataclass(frozen=True)
 class Encoded:
     """A .bdl file and what the encoder knows about it."""
@@ -472,7 +477,7 @@ def _local_frames(coefficients: list[np.ndarray], header: Header):
                 decoded, turned[-1], slices[index - 1][0], levels, header.normal_weight, local=False
             )
         level = slices[index][0]
-        turned[:] = [frames.level_frames(decoded, level, *args)]
+        turned[:] = [frames.level_frames(decoded, level, *args, header.kind)]
         frames.rotate(local, turned[-1], level, levels, header.normal_weight, local=True)
 
     return local, before
@@ -527,17 +532,7 @@ def decode_parsed(
         header = replace(header, restoration=0)
     check_memory(header, max_memory)
     trees, quantized = _decoded_bins(header, streams)
-    if header.frames:
-        coefficients = [
-            _apply_trees(
-                dequantize(q, header.threshold), header.levels, trees, debandeletize, header.transform_1d
-            )
-            for q in quantized
-        ]
-        frames.to_global(coefficients, header.wavelet, header.levels, header.extension, header.normal_weight)
-        channels = [waverec(c, header.wavelet, header.levels, header.extension) for c in coefficients]
-    else:
-        channels = next(islice(_restorations(header, trees, quantized), header.restoration, None))
+    channels = next(islice(_restorations(header, trees, quantized), header.restoration, None))
     return _output(channels, header)
 
 
@@ -560,21 +555,35 @@ def _restorations(header: Header, trees: list, quantized: list[np.ndarray]):
     return restoration.iterate(
         quantized,
         header.threshold,
-        *_transforms(header, trees),
+        *_transforms(header, trees, quantized),
         unit_vectors=(header.height, header.width) if unit else None,
     )
 
 
-def _transforms(header: Header, trees: list):
-    """The file's transform of one (padded) channel and its inverse, for the restoration."""
+def _transforms(header: Header, trees: list, quantized: list[np.ndarray]):
+    """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
+    inverse. With local frames, those of every level are the ones the decoder finds from the
+    dequantized bins ``quantized`` (:func:`bandelets.frames.to_global`), fixed from then on."""
+    t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
+    level_frames = None
+    if header.frames:
+        decoded = [
+            _apply_trees(dequantize(q, header.threshold), levels, trees, debandeletize, t1d)
+            for q in quantized
+        ]
+        level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
 
     def analysis(x: np.ndarray) -> np.ndarray:
-        c = wavedec(x, header.wavelet, header.levels, header.extension)
-        return _apply_trees(c, header.levels, trees, bandeletize, header.transform_1d)
+        c = [wavedec(channel, *args) for channel in x]
+        if level_frames is not None:
+            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=True)
+        return np.array([_apply_trees(channel, levels, trees, bandeletize, t1d) for channel in c])
 
     def synthesis(c: np.ndarray) -> np.ndarray:
-        c = _apply_trees(c, header.levels, trees, debandeletize, header.transform_1d)
-        return waverec(c, header.wavelet, header.levels, header.extension)
+        c = [_apply_trees(channel, levels, trees, debandeletize, t1d) for channel in c]
+        if level_frames is not None:
+            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=False)
+        return np.array([waverec(channel, *args) for channel in c])
 
     return analysis, synthesis
 
@@ -622,7 +631,9 @@ def encode(
     array : array_like, shape (H, W) or (H, W, C), C <= 4
         Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
         A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
-        rebuilds ``z``); otherwise as three channels.
+        rebuilds ``z``); otherwise as three channels, in local frames around the coarser
+        decoded normals (:mod:`bandelets.frames`, normal weight
+        :data:`bandelets.frames.NORMAL_MAP_WEIGHT`).
     bpp, threshold, psnr : float, exactly one
         Target rate in bits per pixel (the file lands within 3 % below it), quantization
         threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
@@ -638,8 +649,9 @@ def encode(
     depth : {0, 8, 16}
         Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
     frames : bool
-        Geometry images only: code the detail coefficients of each level in local frames
-        (normal, tangents) estimated from the decoded coarser levels (:mod:`bandelets.frames`).
+        Geometry images only (normal maps choose by themselves, see ``array``): code the detail
+        coefficients of each level in local frames (normal, tangents) estimated from the decoded
+        coarser levels (:mod:`bandelets.frames`).
     normal_weight : float
         With ``frames``: precision given to the normal component over the tangential ones,
         from 1/64 to 64.
@@ -649,7 +661,7 @@ def encode(
         reversed, see :mod:`bandelets.surfaces.octahedral`).
     restore : bool
         Let the decoder restore the image (:mod:`bandelets.restoration`) for as many
-        iterations as bring it closest to ``array`` (none if that is best); not with ``frames``.
+        iterations as bring it closest to ``array`` (none if that is best).
         Costs no bits; the encoder and decoder then take longer (about 5 ms per iteration for
         256 x 256 x 2).
     progress : bool
@@ -736,6 +748,8 @@ def encode_with_stats(
             levels -= 1
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
+    if kind == "normal-map" and coded.shape[2] == 3:
+        geometry = _NORMAL_MAP_FRAMES
     coefficients = wavelet_coefficients(coded, wavelet, levels, extension)
 
     def encode_at(t: float) -> Encoded:
@@ -759,7 +773,7 @@ def encode_with_stats(
     reference = x[..., 0] if x.shape[2] == 1 else x
 
     def finished(encoded: Encoded) -> Encoded:
-        return _with_restoration(encoded, reference, max_memory) if restore and not frames else encoded
+        return _with_restoration(encoded, reference, max_memory) if restore else encoded
 
     if threshold is not None:
         return finished(encode_at(float(threshold)))
