@@ -30,6 +30,7 @@ MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 #: Options of encode_mesh compared by --variants ("default": its defaults).
 VARIANTS = {
     "default": {},
+    "restored": {"restore": True},
     "no-frames": {"frames": False},
     "no-frames-restored": {"frames": False, "restore": True},
     "symmetric": {"extension": "symmetric"},

@@ -114,6 +114,19 @@ def test_info_json(tmp_path, capsys, npy):
     assert info["bits"]["coefficients"] > 0
 
 
+def test_info_names_the_local_frames_of_a_normal_map(tmp_path, capsys):
+    """A normal map facing every way is coded in local frames; ``info`` says so."""
+    rng = np.random.default_rng(0)
+    normals = rng.normal(size=(32, 32, 3)) + [0.0, 0.0, 2.0]
+    normals[:, :8, 2] *= -1
+    path, bdl = tmp_path / "n.npy", tmp_path / "n.bdl"
+    np.save(path, normals / np.linalg.norm(normals, axis=-1, keepdims=True))
+    _ok(capsys, "encode", path, bdl, "--kind", "normal-map", "--bpp", "2")
+    info = json.loads(_ok(capsys, "info", bdl))
+    assert (info["channels"], info["frames"], info["normal_weight"]) == (3, True, 0.35)
+    assert "extension" not in info
+
+
 def test_16_bit_rgb_normal_map(tmp_path, capsys, crease_map):
     pixels = np.rint((crease_map[:48, :40] + 1) / 2 * 65535).astype(np.uint16)
     png = _write_png(tmp_path / "normals.png", pixels)

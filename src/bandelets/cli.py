@@ -265,11 +265,9 @@ def _info(args) -> None:
         "format_version": FORMAT_VERSION,
     }
     if header.kind == "geometry-image":
-        info |= {
-            "extension": header.extension,
-            "frames": header.frames,
-            "normal_weight": header.normal_weight,
-        }
+        info["extension"] = header.extension
+    if header.kind == "geometry-image" or header.frames:
+        info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))
 
 
