@@ -145,6 +145,24 @@ def test_mesh_commands(tmp_path, capsys):
     assert np.load(gi).shape == (16, 16, 3) and normals.stat().st_size > 0
 
 
+def test_mesh_encode_restores_only_when_asked(tmp_path, capsys):
+    if not KNIGHT.is_file():
+        pytest.skip(f"{KNIGHT} is absent: the real test meshes live beside the project, not in it")
+    counts = []
+    for extra in ([], ["--restore"]):
+        bdl = tmp_path / f"k{len(extra)}.bdl"
+        assert (
+            main(["mesh-encode", str(KNIGHT), str(bdl), "--size", "32", "--bits-per-vertex", "16", *extra])
+            == 0
+        )
+        capsys.readouterr()
+        assert main(["info", str(bdl)]) == 0
+        info = json.loads(capsys.readouterr().out)
+        assert info["frames"]
+        counts.append(info["restoration"])
+    assert counts[0] == 0 < counts[1]
+
+
 def test_mesh_command_errors(tmp_path, capsys):
     torus = tmp_path / "torus.off"
     torus.write_bytes(trimesh.creation.torus(1.0, 0.3).export(file_type="off").encode())
