@@ -27,6 +27,7 @@ from .bitstream import (
     Header,
     check_memory,
     encoder_memory,
+    implied_options,
     pack,
     unpack,
 )
@@ -346,11 +347,6 @@ def _geometry_options(
     check_geometry_options(weight, extension)
     check_extension(shape, wavelet, 1, extension)  # the encoder then picks levels that fit
     return {"extension": extension, "frames": bool(frames), "normal_weight": float(weight) if frames else 1.0}
-
-
-#: Header fields of a normal map coded with its three channels: always in local frames
-#: (:mod:`bandelets.frames`).
-_NORMAL_MAP_FRAMES = {"frames": True, "normal_weight": frames.NORMAL_MAP_WEIGHT}
 
 
 @dataclass(frozen=True)
@@ -748,8 +744,8 @@ def encode_with_stats(
             levels -= 1
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
-    if kind == "normal-map" and coded.shape[2] == 3:
-        geometry = _NORMAL_MAP_FRAMES
+    if kind == "normal-map":  # three channels: always in local frames
+        geometry = implied_options(kind, coded.shape[2])
     coefficients = wavelet_coefficients(coded, wavelet, levels, extension)
 
     def encode_at(t: float) -> Encoded:
