@@ -189,3 +189,12 @@ def test_psnr_target_counts_the_restoration(crease_map):
     assert decoded >= 45.0
     assert restored.psnr == pytest.approx(decoded, abs=1e-9)  # what rate control trusted
     assert len(restored.data) < len(plain.data)
+
+
+def test_channels_transformed_in_threads_decode_the_same(monkeypatch, crease_map):
+    """Large images transform their channels in parallel threads: same result as one by one."""
+    data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map")
+    assert unpack(data)[0].restoration > 0
+    alone = bandelets.decode(data)
+    monkeypatch.setattr(codec, "_THREADS_FROM", 0)
+    np.testing.assert_array_equal(bandelets.decode(data), alone)

@@ -557,18 +557,28 @@ def _restorations(header: Header, trees: list, quantized: list[np.ndarray]):
     )
 
 
+#: Pixels from which the restoration transforms the channels in parallel threads (independent
+#: transforms; numpy lets go of the GIL on large arrays): a two-channel crease map decodes
+#: 1.3 times faster at 2048 x 2048 and 1024 x 1024, 1.1 times at 512 x 512, but 1.4 times slower
+#: at 256 x 256, where the threads mostly wait for each other (``benchmarks/speed.py``).
+_THREADS_FROM = 512 * 512
+
+
+def _channel_map(header: Header):
+    """``each(function, channels)``, the list of ``function(channel)``: in one thread per channel
+    from :data:`_THREADS_FROM` pixels on."""
+    if header.channels < 2 or header.height * header.width < _THREADS_FROM:
+        return lambda function, channels: [function(channel) for channel in channels]
+    pool = ThreadPoolExecutor(max_workers=header.channels)
+    return lambda function, channels: list(pool.map(function, channels))
+
+
 def _transforms(header: Header, trees: list, quantized: list[np.ndarray]):
     """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
     inverse. With local frames, those of every level are the ones the decoder finds from the
     dequantized bins ``quantized`` (:func:`bandelets.frames.to_global`), fixed from then on."""
     t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
-    # The channels are transformed independently, and numpy lets go of the GIL on large arrays:
-    # one thread per channel decodes a two-channel 1024 x 1024 map 1.5 times faster.
-    pool = ThreadPoolExecutor(max_workers=header.channels)
-
-    def each(function, channels) -> list[np.ndarray]:
-        return list(pool.map(function, channels))
-
+    each = _channel_map(header)
     level_frames = None
     if header.frames:
         decoded = [
