@@ -187,7 +187,8 @@ def rotate(
         if local:
             out = [sum(frames[..., i, j] * v[j] for j in range(3)) * scale[i] for i in range(3)]
         else:
-            out = [sum(frames[..., j, i] * (v[j] / scale[j]) for j in range(3)) for i in range(3)]
+            v = [v[j] / scale[j] for j in range(3)]
+            out = [sum(frames[..., j, i] * v[j] for j in range(3)) for i in range(3)]
         for c, turned in zip(coefficients, out, strict=True):
             c[where] = turned
 
