@@ -16,6 +16,7 @@ straight from and into the subband: no index arrays.
 
 from __future__ import annotations
 
+import math
 from functools import cache
 
 import numpy as np
@@ -39,6 +40,30 @@ __all__ = [
 TRANSFORMS_1D = ("haar", "alpert2")
 
 
+def _dot(a, b) -> float:
+    """Correctly rounded dot product: the same bits on every CPU (BLAS and LAPACK are not)."""
+    return math.fsum(x * y for x, y in zip(a, b, strict=True))
+
+
+def _orthonormalise(vectors: list[list[float]], against: list[list[float]]) -> list[list[float]]:
+    """Gram-Schmidt of ``vectors``, in order, against ``against`` and each other (twice, for accuracy)."""
+    basis = list(against)
+    for v in vectors:
+        for _ in range(2):
+            for b in basis:
+                c = _dot(v, b)
+                v = [x - c * y for x, y in zip(v, b, strict=True)]
+        norm = math.sqrt(_dot(v, v))
+        basis.append([x / norm for x in v])
+    return basis[len(against) :]
+
+
+def _in_children(f: list[float], child: list[list[float]]) -> list[float]:
+    """Coefficients of ``f``, a function on two adjacent blocks, in the blocks' scaling functions."""
+    size = len(child[0])
+    return [_dot(c, f[:size]) for c in child] + [_dot(c, f[size:]) for c in child]
+
+
 @cache
 def alpert_matrices(n: int, k: int) -> np.ndarray:
     """Orthogonal ``2k x 2k`` matrices of Alpert's multiwavelet on ``n`` uniform samples.
@@ -48,24 +73,40 @@ def alpert_matrices(n: int, k: int) -> np.ndarray:
     the orthonormal projection on polynomials of degree < k) and ``k`` wavelet coefficients
     orthogonal to those polynomials (``k`` vanishing moments). ``k = 1`` is the Haar transform.
 
+    The wavelets are the functions ``sign(x) x**j`` (``j < k``, ``x`` centred on the union)
+    made orthogonal to the polynomials and to each other, in that order: any orthonormal
+    basis of that space has the vanishing moments, but the file format needs one that every
+    machine computes to the same bits, so the basis is fixed by construction and computed
+    with correctly rounded sums (an SVD or QR through LAPACK returned another rotation on
+    another CPU, and files decoded differently there).
+
     Returns
     -------
     ndarray, shape (log2(n / k), 2k, 2k), read-only.
+
+    Examples
+    --------
+    >>> m = alpert_matrices(8, 2)
+    >>> m.shape
+    (2, 4, 4)
+    >>> bool(np.allclose(m[0] @ m[0].T, np.eye(4)))
+    True
     """
     mats = []
-    child = np.eye(k)  # scaling functions of a block, on its samples
+    child = [[float(i == j) for j in range(k)] for i in range(k)]  # k functions on k samples
     size = k
     while size < n:
-        x = (np.arange(2 * size) - (2 * size - 1) / 2) / size
-        parent = np.linalg.qr(np.vander(x, k, increasing=True))[0]
-        children = np.zeros((2 * size, 2 * k))
-        children[:size, :k] = child
-        children[size:, k:] = child
-        scaling = children.T @ parent  # (2k, k), orthonormal columns
-        wavelets = np.linalg.svd(np.eye(2 * k) - scaling @ scaling.T)[0][:, :k]
-        mats.append(np.vstack([scaling.T, wavelets.T]))
+        x = [(i - (2 * size - 1) / 2) / size for i in range(2 * size)]
+        monomials = [[1.0] * (2 * size)]
+        for _ in range(1, k):  # products, not pow: the same bits everywhere
+            monomials.append([m * xi for m, xi in zip(monomials[-1], x, strict=True)])
+        parent = _orthonormalise(monomials, [])
+        scaling = [_in_children(p, child) for p in parent]
+        steps = [[m if xi > 0 else -m for xi, m in zip(x, mono, strict=True)] for mono in monomials]
+        wavelets = _orthonormalise([_in_children(s, child) for s in steps], scaling)
+        mats.append(scaling + wavelets)
         child, size = parent, 2 * size
-    out = np.array(mats)
+    out = np.array(mats, dtype=np.float64).reshape(-1, 2 * k, 2 * k)
     out.flags.writeable = False
     return out
 

@@ -29,7 +29,9 @@ the total variation) and restores a normal map coded with its three channels on 
 (:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty, codes a
 normal map of three channels in local frames around its coarser normals (implied by the kind and
 the channel count, weight :data:`bandelets.frames.NORMAL_MAP_WEIGHT`: no header field) and lets
-files with local frames be restored. This build reads version 5 only.
+files with local frames be restored. Version 6 fixed the basis of Alpert's multiwavelet by
+construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
+rotation depended on the CPU's LAPACK kernels). This build reads version 6 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -75,7 +77,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 KINDS = ("image", "normal-map", "geometry-image")
 TRANSFORMS = ("bandelet", "wavelet")
 #: Largest side and sample count a decoder accepts by default.
