@@ -29,20 +29,15 @@ from scipy import ndimage
 
 import bandelets
 from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, transform_rows
-from bandelets.codec import (
-    Header,
-    _apply_trees,
-    _best_trees,
-    code_image,
-    encode_with_stats,
-    new_coders,
-    wavelet_coefficients,
-)
+from bandelets.bitstream import Header
+from bandelets.coding import code_image, new_coders
+from bandelets.encoder import encode_with_stats
 from bandelets.geometry import directions
 from bandelets.layout import subband_plan
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 from bandelets.quantize import quantize
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
 from bandelets.wavelets import max_levels, subband_slices
 
 RATES = (0.25, 0.5, 1.0, 2.0)
@@ -80,7 +75,7 @@ def significant_left(
 def bits_per_significant(coefficients: list[np.ndarray], levels: int, threshold: float) -> dict:
     """Inside the squares the search gives a direction at ``threshold``: significant coefficients
     and coded bits (the coder's own ledger) with and without the bandelet transform."""
-    trees = _best_trees(coefficients, levels, threshold, "bandelet", "alpert2")
+    trees = best_trees(coefficients, levels, threshold, "bandelet", "alpert2")
     shape = coefficients[0].shape
     inside = np.zeros(shape[0] * shape[1], bool)
     for index, tree in enumerate(trees):
@@ -90,7 +85,7 @@ def bits_per_significant(coefficients: list[np.ndarray], levels: int, threshold:
         header = Header(*shape, len(coefficients), "image", transform, "cdf97", levels, threshold)
         values = coefficients
         if transform == "bandelet":
-            values = [_apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
+            values = [apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
         q = [quantize(v, threshold).ravel() for v in values]
         _, _, spent = code_image(new_coders(), header, trees if transform == "bandelet" else None, q)
         significant = sum(int(np.count_nonzero(c[inside])) for c in q)

@@ -16,12 +16,14 @@ import argparse
 
 import numpy as np
 
-from bandelets import codec
+from bandelets.bandeletize import bandeletize
 from bandelets.bitstream import Header
+from bandelets.coding import code_image, new_coders
 from bandelets.geometry import zigzag
 from bandelets.lagrangian import RATE_MODEL, square_features
 from bandelets.quantize import quantize
 from bandelets.samples import crease_normal_map
+from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
 from bandelets.wavelets import max_levels, subband_slices
 
 
@@ -29,19 +31,15 @@ def collect(size: int, transform_1d: str, thresholds: list[float]):
     """Rows (significance, significant, sum log2 m, actual bits) for wavelet / bandelet squares."""
     image = crease_normal_map(size)[..., :2]  # z >= 0: the codec codes x and y only
     levels = max_levels(image.shape[:2])
-    coefficients = codec.wavelet_coefficients(image, "cdf97", levels)
+    coefficients = wavelet_coefficients(image, "cdf97", levels)
     k = 2 if transform_1d == "alpert2" else 1
     rows = {"wavelet": [], "bandelet": []}
     for t in thresholds:
         for transform in ("wavelet", "bandelet"):
             header = Header(size, size, 2, "normal-map", transform, "cdf97", levels, t, 0, transform_1d)
-            trees = codec._best_trees(coefficients, levels, t, transform, transform_1d)
-            bands = [
-                codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients
-            ]
-            _, _, spent = codec.code_image(
-                codec.new_coders(), header, trees, [quantize(b, t).ravel() for b in bands]
-            )
+            trees = best_trees(coefficients, levels, t, transform, transform_1d)
+            bands = [apply_trees(c, levels, trees, bandeletize, transform_1d) for c in coefficients]
+            _, _, spent = code_image(new_coders(), header, trees, [quantize(b, t).ravel() for b in bands])
             for b, ledger in zip(bands, spent, strict=True):
                 ledger = ledger.reshape(b.shape)
                 for (_, _, where), tree in zip(subband_slices(b.shape, levels), trees, strict=True):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bandelets import codec
+import bandelets
 from bandelets.surfaces import checks, geometry_image, metrics, sphere
 from bandelets.surfaces.codec import load_mesh
 
@@ -35,7 +35,7 @@ def main() -> None:
     args = parser.parse_args()
     if not MESHES.is_dir():
         sys.exit(f"{MESHES} is absent: this benchmark needs the shared test meshes")
-    codec.encode(np.random.default_rng(0).normal(size=(32, 32, 3)), bpp=2.0, kind="geometry-image")
+    bandelets.encode(np.random.default_rng(0).normal(size=(32, 32, 3)), bpp=2.0, kind="geometry-image")
 
     times = {}
 
@@ -60,8 +60,8 @@ def main() -> None:
     print(f"  {mapped.iterations} relaxation steps, distortion {mapped.distortion}")
     image, _ = stage("sampling", geometry_image.sample, vertices, faces, mapped.points, args.size)
     rate = args.bpv * len(vertices) / args.size**2
-    data = stage("encode", codec.encode, image, bpp=rate, kind="geometry-image")
-    decoded = stage("decode", codec.decode, data)
+    data = stage("encode", bandelets.encode, image, bpp=rate, kind="geometry-image")
+    decoded = stage("decode", bandelets.decode, data)
     rebuilt = stage("rebuild mesh", geometry_image.mesh_from_image, decoded)
     total = sum(times.values())
     print(f"{'total':28s} {total:7.2f} s  ({8 * len(data) / len(vertices):.2f} bits per vertex)")

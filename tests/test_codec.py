@@ -7,8 +7,9 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import codec, metrics
+from bandelets import decoder, encoder, metrics
 from bandelets.bitstream import unpack
+from bandelets.lagrangian import LAMBDA
 from bandelets.wavelets import WAVELETS, padded_shape, subband_slices
 
 
@@ -176,7 +177,7 @@ def test_coefficient_sse_is_the_decoded_squared_error():
     error of the coefficients (before the restoration, which only the decoded image sees)."""
     x = _image((64, 64), seed=8)
     t = 0.03
-    enc = codec.encode_with_stats(x, threshold=t, wavelet="db4", restore=False)
+    enc = encoder.encode_with_stats(x, threshold=t, wavelet="db4", restore=False)
     assert enc.threshold == t
     y = bandelets.decode(enc.data)
     sse = float(np.sum((x - y) ** 2))
@@ -215,14 +216,14 @@ def test_normal_map_facing_up_is_coded_as_two_channels(crease_map):
 
 def test_rebuilt_z_is_zero_outside_the_unit_disc():
     xy = np.array([[[0.6, 0.0], [0.9, 0.6]]])
-    np.testing.assert_allclose(codec._rebuilt_z(xy)[..., 0], [[0.8, 0.0]])
+    np.testing.assert_allclose(decoder.rebuilt_z(xy)[..., 0], [[0.8, 0.0]])
 
 
 def test_auto_wavelet_keeps_the_better_file(crease_map):
     # The choice does not depend on the transform: wavelets keep the test fast.
     options = dict(kind="normal-map", transform="wavelet")
     # At a rate target: the file of the candidate whose decoded map has the higher PSNR.
-    files = {w: bandelets.encode(crease_map, bpp=2, wavelet=w, **options) for w in codec.AUTO_CANDIDATES}
+    files = {w: bandelets.encode(crease_map, bpp=2, wavelet=w, **options) for w in encoder.AUTO_CANDIDATES}
     quality = {w: metrics.psnr(crease_map, bandelets.decode(d), "normal-map") for w, d in files.items()}
     best = max(quality, key=quality.get)
     auto = bandelets.encode(crease_map, bpp=2, wavelet="auto", **options)
@@ -231,13 +232,14 @@ def test_auto_wavelet_keeps_the_better_file(crease_map):
     # At a fixed threshold: the smaller error + LAMBDA T**2 bits.
     t = 0.02
     stats = [
-        codec.encode_with_stats(crease_map, threshold=t, wavelet=w, **options) for w in codec.AUTO_CANDIDATES
+        encoder.encode_with_stats(crease_map, threshold=t, wavelet=w, **options)
+        for w in encoder.AUTO_CANDIDATES
     ]
-    cost = [s.coefficient_sse + codec.LAMBDA * t * t * 8 * len(s.data) for s in stats]
+    cost = [s.coefficient_sse + LAMBDA * t * t * 8 * len(s.data) for s in stats]
     chosen = stats[int(np.argmin(cost))].data
     assert bandelets.encode(crease_map, threshold=t, wavelet="auto", **options) == chosen
     # At a quality target: the smaller file.
-    files = [bandelets.encode(crease_map, psnr=50, wavelet=w, **options) for w in codec.AUTO_CANDIDATES]
+    files = [bandelets.encode(crease_map, psnr=50, wavelet=w, **options) for w in encoder.AUTO_CANDIDATES]
     assert bandelets.encode(crease_map, psnr=50, wavelet="auto", **options) == min(files, key=len)
 
 

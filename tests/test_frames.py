@@ -8,7 +8,7 @@ import pytest
 import bandelets
 from bandelets import frames, metrics
 from bandelets.bitstream import unpack
-from bandelets.codec import encode_with_stats
+from bandelets.encoder import encode_with_stats
 from bandelets.surfaces import octahedral
 from bandelets.wavelets import wavedec
 

@@ -9,9 +9,9 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import codec
-from bandelets.bandeletize import transform_rows
+from bandelets.bandeletize import bandeletize, transform_rows
 from bandelets.bitstream import Header
+from bandelets.coding import code_image, new_coders
 from bandelets.geometry import directions
 from bandelets.lagrangian import (
     LAMBDA,
@@ -22,6 +22,7 @@ from bandelets.lagrangian import (
     square_features,
 )
 from bandelets.quantize import dequantize, quantize
+from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
 from bandelets.wavelets import max_levels, subband_slices
 
 # ---------------------------------------------------------------------------------------------
@@ -183,7 +184,7 @@ def _model_and_actual_bits(image, kind, transform_1d, thresholds):
     """Per threshold, modelled and actual bits of the wavelet squares (NULL leaves of the
     wavelet transform), as in benchmarks/calibrate_rate.py."""
     levels = max_levels(image.shape[:2])
-    coefficients = codec.wavelet_coefficients(image, "cdf97", levels)
+    coefficients = wavelet_coefficients(image, "cdf97", levels)
     model = actual = 0.0
     for t in thresholds:
         header = Header(
@@ -198,10 +199,10 @@ def _model_and_actual_bits(image, kind, transform_1d, thresholds):
             0,
             transform_1d,
         )
-        trees = codec._best_trees(coefficients, levels, t, "wavelet", transform_1d)
-        bands = [codec._apply_trees(c, levels, trees, codec.bandeletize, transform_1d) for c in coefficients]
+        trees = best_trees(coefficients, levels, t, "wavelet", transform_1d)
+        bands = [apply_trees(c, levels, trees, bandeletize, transform_1d) for c in coefficients]
         quantized = [quantize(b, t).ravel() for b in bands]
-        _, _, spent = codec.code_image(codec.new_coders(), header, trees, quantized)
+        _, _, spent = code_image(new_coders(), header, trees, quantized)
         for b, bits in zip(bands, spent, strict=True):
             bits = bits.reshape(b.shape)
             for (_, _, where), tree in zip(subband_slices(b.shape, levels), trees, strict=True):
@@ -228,13 +229,13 @@ def test_coder_ledger_matches_the_file_size(crease_map):
     coefficient stream, up to the coder's flush bytes."""
     t = 0.01
     levels = max_levels(crease_map.shape[:2])
-    coefficients = codec.wavelet_coefficients(crease_map, "cdf97", levels)
+    coefficients = wavelet_coefficients(crease_map, "cdf97", levels)
     header = Header(64, 64, 3, "normal-map", "bandelet", "cdf97", levels, t, 0, "alpert2")
-    trees = codec._best_trees(coefficients, levels, t, "bandelet", "alpert2")
-    bands = [codec._apply_trees(c, levels, trees, codec.bandeletize, "alpert2") for c in coefficients]
+    trees = best_trees(coefficients, levels, t, "bandelet", "alpert2")
+    bands = [apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
     quantized = [quantize(b, t).ravel() for b in bands]
-    coders = codec.new_coders()
-    _, _, spent = codec.code_image(coders, header, trees, quantized)
+    coders = new_coders()
+    _, _, spent = code_image(coders, header, trees, quantized)
     stream = coders[2].finish()
     total = sum(float(s.sum()) for s in spent)
     assert 8 * len(stream) == pytest.approx(total, rel=0.02, abs=64)

@@ -15,8 +15,10 @@ from conftest import straight_edge
 from numba import njit
 
 import bandelets
-from bandelets import codec, lagrangian, layout, quantize
+from bandelets import lagrangian, layout, quantize
 from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, debandeletize_bins
+from bandelets.coding import code_image, new_coders
+from bandelets.transform import best_trees, wavelet_coefficients
 from bandelets.wavelets import max_levels, subband_slices
 
 
@@ -41,8 +43,12 @@ def _crease_subbands(size, threshold, transform_1d="alpert2"):
 
     x = crease_normal_map(size)
     levels = max_levels(x.shape[:2])
-    coefficients = codec.wavelet_coefficients(x, "cdf97", levels)
-    return coefficients, levels, codec._best_trees(coefficients, levels, threshold, "bandelet", transform_1d)
+    coefficients = wavelet_coefficients(x, "cdf97", levels)
+    return (
+        coefficients,
+        levels,
+        best_trees(coefficients, levels, threshold, "bandelet", transform_1d),
+    )
 
 
 @pytest.mark.parametrize("width", [4, 8, 16, 32])
@@ -128,7 +134,7 @@ def test_decoded_trees_cache_the_leaves_they_would_find():
     from bandelets.samples import crease_normal_map
 
     header, streams = unpack(bandelets.encode(crease_normal_map(64), threshold=0.005, kind="normal-map"))
-    trees, _, _ = codec.code_image(codec.new_coders(streams), header)
+    trees, _, _ = code_image(new_coders(streams), header)
     assert any(np.any(t.leaves()[3] >= 0) for t in trees)
     for tree in trees:
         for cached, found in zip(tree.leaves(), tree._find_leaves(), strict=True):

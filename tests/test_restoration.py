@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import codec, metrics, restoration
+from bandelets import decoder, encoder, metrics, restoration
 from bandelets.bitstream import pack, unpack
 from bandelets.quantize import dequantize, quantize
 from bandelets.wavelets import wavedec, waverec
@@ -136,12 +136,14 @@ def test_three_channel_normal_maps_are_restored_on_the_sphere(crease_map):
     data = bandelets.encode(normals, bpp=1.0, kind="normal-map", restore=False)
     header, streams = unpack(data)
     assert header.channels == 3
-    trees, quantized = codec._decoded_bins(header, streams)
-    transforms = codec._transforms(header, trees, quantized)
+    trees, quantized = decoder.decoded_bins(header, streams)
+    transforms = decoder.channel_transforms(header, trees, quantized)
 
     def best(unit_vectors):
         steps = restoration.iterate(quantized, header.threshold, *transforms, unit_vectors=unit_vectors)
-        return max(metrics.psnr(normals, codec._output(next(steps), header), "normal-map") for _ in range(30))
+        return max(
+            metrics.psnr(normals, decoder.decoded_image(next(steps), header), "normal-map") for _ in range(30)
+        )
 
     assert best((64, 64)) > best(None) + 0.05
 
@@ -169,10 +171,10 @@ def test_files_with_local_frames_are_restored_in_their_frames():
     data = bandelets.encode(surface, bpp=4.0, kind="geometry-image", frames=True, restore=False)
     header, streams = unpack(data)
     assert header.frames
-    trees, quantized = codec._decoded_bins(header, streams)
-    analysis, synthesis = codec._transforms(header, trees, quantized)
+    trees, quantized = decoder.decoded_bins(header, streams)
+    analysis, synthesis = decoder.channel_transforms(header, trees, quantized)
     steps = restoration.iterate(quantized, header.threshold, analysis, synthesis)
-    np.testing.assert_array_equal(codec._output(next(steps), header), bandelets.decode(data))
+    np.testing.assert_array_equal(decoder.decoded_image(next(steps), header), bandelets.decode(data))
     for _ in range(5):
         x = next(steps)
     c = analysis(x)
@@ -183,8 +185,8 @@ def test_files_with_local_frames_are_restored_in_their_frames():
 
 def test_psnr_target_counts_the_restoration(crease_map):
     """A quality target is met by the restored image, with a smaller file than without it."""
-    restored = codec.encode_with_stats(crease_map, psnr=45.0, kind="normal-map")
-    plain = codec.encode_with_stats(crease_map, psnr=45.0, kind="normal-map", restore=False)
+    restored = encoder.encode_with_stats(crease_map, psnr=45.0, kind="normal-map")
+    plain = encoder.encode_with_stats(crease_map, psnr=45.0, kind="normal-map", restore=False)
     decoded = metrics.psnr(crease_map, bandelets.decode(restored.data), "normal-map")
     assert decoded >= 45.0
     assert restored.psnr == pytest.approx(decoded, abs=1e-9)  # what rate control trusted
@@ -196,5 +198,5 @@ def test_channels_transformed_in_threads_decode_the_same(monkeypatch, crease_map
     data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map")
     assert unpack(data)[0].restoration > 0
     alone = bandelets.decode(data)
-    monkeypatch.setattr(codec, "_THREADS_FROM", 0)
+    monkeypatch.setattr(decoder, "THREADS_FROM", 0)
     np.testing.assert_array_equal(bandelets.decode(data), alone)

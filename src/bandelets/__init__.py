@@ -19,11 +19,11 @@ __version__ = "0.1.0"
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
 _HOME = {
     "FormatError": "bitstream",
-    "Bandelets": "codec",
-    "decode": "codec",
-    "encode": "codec",
-    "forward": "codec",
-    "inverse": "codec",
+    "Bandelets": "transform",
+    "decode": "decoder",
+    "encode": "encoder",
+    "forward": "transform",
+    "inverse": "transform",
 }
 
 

@@ -191,7 +191,7 @@ def _check_output(input_path: str, output: str, force: bool) -> None:
 
 
 def _encode(args) -> None:
-    from .codec import encode
+    from .encoder import encode
     from .files import read_array, write_atomic
 
     _check_output(args.input, args.output, args.force)
@@ -215,7 +215,7 @@ def _encode(args) -> None:
 
 def _decode(args) -> None:
     from .bitstream import unpack
-    from .codec import decode_parsed
+    from .decoder import decode_parsed
     from .files import write_array
 
     _check_output(args.input, args.output, args.force)

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from .codec import decode, encode
+from .decoder import decode
+from .encoder import encode
 from .files import write_array, write_atomic
 from .metrics import bd_psnr, bits_per_pixel, psnr
 from .samples import crease_normal_map

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .files import write_atomic
 
-__all__ = ["rd_figure", "save"]
+__all__ = ["rate_key", "rd_figure", "save"]
 
 #: Line style of each codec, so that a codec looks the same in every panel and figure.
 _STYLE = {
@@ -27,6 +27,11 @@ def save(figure, path: Path, dpi: int = 100) -> None:
     write_atomic(path, buffer.getvalue())
 
 
+def rate_key(rows: list[dict]) -> str:
+    """The rate of the rows: ``"bpv"`` (bits per vertex) for meshes, else ``"bpp"``."""
+    return "bpv" if rows and "bpv" in rows[0] else "bpp"
+
+
 def rd_figure(rows: list[dict], path: Path) -> None:
     """Plot PSNR (dB) against bits per pixel (or per vertex) for every codec, one panel per input.
 
@@ -40,8 +45,6 @@ def rd_figure(rows: list[dict], path: Path) -> None:
     """
     from matplotlib.figure import Figure
     from matplotlib.ticker import FormatStrFormatter
-
-    from .rd import rate_key
 
     rate = rate_key(rows)
     inputs = list(dict.fromkeys(r["input"] for r in rows)) or ["(no points)"]

@@ -4,7 +4,7 @@
 a dead zone of width ``2T`` and bins of width ``T`` reconstructed at their middle. Here the
 reconstruction point is :data:`RECONSTRUCTION` (a little below the middle), and the encoder
 may move a value between 0 and +-1 (rate-distortion optimised quantization, in
-:mod:`bandelets.codec`). The integer that is entropy-coded is the signed bin index
+:mod:`bandelets.encoder`). The integer that is entropy-coded is the signed bin index
 ``sign(x) q`` (0 in the dead zone).
 """
 

@@ -31,6 +31,7 @@ from tqdm import tqdm
 from . import anchors, samples
 from .files import read_array, write_atomic
 from .metrics import bd_psnr, bits_per_pixel, psnr
+from .plots import rate_key, rd_figure
 
 __all__ = [
     "CODECS",
@@ -45,7 +46,6 @@ __all__ = [
     "format_summary",
     "gains",
     "load",
-    "rate_key",
     "run",
 ]
 
@@ -137,7 +137,7 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
             raise ValueError(f"{spec}: {err}") from None
         return MeshSource(Path(spec).stem, mesh, spherical, size, time.perf_counter() - start)
     if not spec.startswith("sample:"):
-        from .codec import check_image
+        from .options import check_image
 
         array, depth = read_array(spec, kind)
         try:  # here, so that a bad input stops the run instead of skipping its every point
@@ -158,9 +158,9 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
 def _encode(source: Source, codec: str, rate: float) -> bytes:
     if codec in anchors.ANCHORS:
         return anchors.encode(source.array, rate, codec, source.kind, source.depth)
-    from .codec import encode
+    from .encoder import encode
 
-    # The encoder picks the better of CDF 9/7 and Haar for each point (codec.AUTO_CANDIDATES).
+    # The encoder picks the better of CDF 9/7 and Haar for each point (encoder.AUTO_CANDIDATES).
     return encode(
         source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth, wavelet="auto"
     )
@@ -169,7 +169,7 @@ def _encode(source: Source, codec: str, rate: float) -> bytes:
 def _decode(source: Source, codec: str, data: bytes) -> np.ndarray:
     if codec in anchors.ANCHORS:
         return anchors.decode(data, codec, source.array, source.kind, source.depth)
-    from .codec import decode
+    from .decoder import decode
 
     return decode(data)
 
@@ -288,7 +288,6 @@ def run(
         except ValueError as err:
             warnings.warn(f"{source.name}: {codec} at {rate:g} {unit} skipped: {err}", stacklevel=2)
     _write_csv(rows, out / "rd.csv", _MESH_COLUMNS if any(meshes) else _COLUMNS)
-    from .plots import rd_figure
 
     rd_figure(rows, out / "rd.png")
     return rows
@@ -301,11 +300,6 @@ def _write_csv(rows: list[dict], path: Path, columns: tuple[str, ...]) -> None:
     for row in rows:
         writer.writerow({k: f"{v:.6g}" if isinstance(v, float) else v for k, v in row.items()})
     write_atomic(path, text.getvalue().encode())
-
-
-def rate_key(rows: list[dict]) -> str:
-    """The rate of the rows: ``"bpv"`` (bits per vertex) for meshes, else ``"bpp"``."""
-    return "bpv" if rows and "bpv" in rows[0] else "bpp"
 
 
 def _curve(rows: list[dict], name: str, codec: str) -> tuple[np.ndarray, np.ndarray]:

@@ -75,7 +75,7 @@ SECOND_EDGE = 0.5
 #: Most iterations a file may ask for (its header stores the count in one byte).
 MAX_ITERATIONS = 100
 #: What the encoder's rate-distortion optimised quantization may do to a value (see
-#: ``bandelets.codec._optimise_bins``): a value of bin +-1 (below 2T) may be coded as 0, and a
+#: ``bandelets.encoder._optimise_bins``): a value of bin +-1 (below 2T) may be coded as 0, and a
 #: dead-zone value above PROMOTE_ABOVE T as +-1. So a 0 may hide up to 2T, a +-1 down to that.
 _ZERO_UP_TO = 2.0
 #: Below this length a vector is left as it is rather than blown up to unit length.

@@ -14,7 +14,7 @@ import numpy as np
 
 from .bandeletize import debandeletize
 from .bitstream import Header, unpack
-from .codec import code_image, new_coders
+from .coding import code_image, new_coders
 from .geometry import directions
 from .quantize import dequantize
 from .wavelets import padded_shape, subband_slices

@@ -45,7 +45,7 @@ import bandelets.quantize  # noqa: E402,F401
 
 with atheris.instrument_imports(include=["bandelets"]):
     import bandelets
-    import bandelets.codec  # imported lazily by the package: import it here to instrument it
+    import bandelets.encoder  # imported lazily by the package: import it here to instrument it
     from bandelets.bitstream import FormatError
     from bandelets.wavelets import MAX_LEVELS, WAVELETS, _subband_norms
 

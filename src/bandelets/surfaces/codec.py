@@ -241,7 +241,8 @@ def encode_mesh(
     -------
     bytes
     """
-    from .. import codec
+    from ..encoder import encode
+    from ..options import check_geometry_options
 
     targets = {"bpp": bpp, "bits_per_vertex": bits_per_vertex, "n_bytes": n_bytes}
     given = [name for name, value in targets.items() if value is not None]
@@ -250,7 +251,7 @@ def encode_mesh(
     for name, value in targets.items():
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
-    codec.check_geometry_options(normal_weight, extension)  # before the slow parameterization
+    check_geometry_options(normal_weight, extension)  # before the slow parameterization
     if image is not None:
         if size is not None and size != image.shape[0]:
             raise ValueError(f"size {size} given with a {image.shape[0]} x {image.shape[1]} geometry image")
@@ -266,7 +267,7 @@ def encode_mesh(
     check_size(size)
     if image is None:
         image = sample_geometry_image(spherical or map_to_sphere(mesh), size).positions
-    return codec.encode(
+    return encode(
         image,
         bpp=bits / (image.shape[0] * image.shape[1]),
         transform=transform,
@@ -291,8 +292,8 @@ def decode_mesh(data: bytes):
         A corrupt file (``bandelets.FormatError``), or one that is not a square geometry image
         of even side.
     """
-    from .. import codec
     from ..bitstream import unpack
+    from ..decoder import decode_parsed
 
     header, streams = unpack(bytes(data))
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
@@ -300,4 +301,4 @@ def decode_mesh(data: bytes):
             f"not a mesh file: a {header.width} x {header.height} {header.kind} "
             "(expected a square geometry image of even side)"
         )
-    return geometry_image.mesh_from_image(codec.decode_parsed(header, streams))
+    return geometry_image.mesh_from_image(decode_parsed(header, streams))

@@ -1,0 +1,106 @@
+"""Coding of a whole image's quadtrees and bins into the three streams of a .bdl file, and back.
+
+One function, :func:`code_image`, walks the image in the order of the file for both the
+encoder and the decoder, so the two cannot disagree on it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import entropy
+from .bandeletize import debandeletize_bins
+from .bitstream import Header
+from .layout import approximation_plan, subband_plan
+from .quadtree import flat_quadtree, root_width
+from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
+from .wavelets import padded_shape, subband_slices
+
+__all__ = ["code_image", "new_coders"]
+
+
+def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
+    """Activity of the coarser subband under squares of detail subband ``index``.
+
+    Returns ``(rows, cols, widths) -> bucket``: 0 if every already coded coefficient (all
+    channels) of the parent region is 0, 1 if their magnitudes sum to at most 2, 2 above;
+    3 for the coarsest detail level, whose parent is the approximation.
+    """
+    if index < 3:
+        return lambda rows, cols, widths: np.full(np.broadcast(rows, cols, widths).shape, 3)
+    where = subband_slices(shape, levels)[index - 3][2]
+    magnitude = sum(np.abs(k.reshape(shape)[where]) for k in known)
+    table = np.zeros((magnitude.shape[0] + 1, magnitude.shape[1] + 1), np.int64)
+    table[1:, 1:] = magnitude.cumsum(0).cumsum(1)
+
+    def bucket(rows, cols, widths):
+        rows, cols, widths = np.broadcast_arrays(rows, cols, widths)
+        r0, c0 = rows // 2, cols // 2
+        r1 = np.minimum((rows + widths) // 2, magnitude.shape[0])
+        c1 = np.minimum((cols + widths) // 2, magnitude.shape[1])
+        total = table[r1, c1] - table[r0, c1] - table[r1, c0] + table[r0, c0]
+        return np.where(total == 0, 0, np.where(total <= 2, 1, 2))
+
+    return bucket
+
+
+def code_image(
+    coders: tuple, header: Header, trees: list | None = None, quantized: list[np.ndarray] | None = None
+) -> tuple[list, list, list]:
+    """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
+
+    Order: the approximation of every channel, then subband by subband (coarse to fine,
+    H, V, D): its quadtree and directions (:mod:`bandelets.treecoding`), then for each
+    channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.layout`).
+    The guide of a channel (a context, see :func:`bandelets.entropy.code_coefficients`) is
+    what the previous channel coded, bandelet coefficients included. After a channel's
+    bandelet squares, the contexts are given the wavelet coefficients those
+    squares decode to.
+
+    Returns
+    -------
+    trees : list of Quadtree
+    quantized : list of ndarray of int32, shape (H * W,), per channel
+    spent : list of ndarray of float64, shape (H * W,): ideal code length of every coefficient
+    """
+    splits, dirs, coeffs = coders
+    shape = padded_shape((header.height, header.width), header.levels)
+    size = shape[0] * shape[1]
+    decoding = quantized is None
+    if decoding:
+        quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
+    known = [np.zeros(size, np.int64) for _ in quantized]
+    spent = [np.zeros(size) for _ in quantized]
+    approximation = approximation_plan(shape, header.levels)
+    guides = [np.zeros(0, np.int32)] + quantized[:-1]
+    for c, q in enumerate(quantized):
+        entropy.code_coefficients(coeffs, q, approximation, known[c], guides[c], spent[c])
+    out = []
+    for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
+        band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
+        if header.transform == "bandelet":
+            tree = code_tree(
+                splits,
+                dirs,
+                None if decoding else trees[index],
+                band,
+                reference_of(out, index, orientation),
+                _activity(known, shape, header.levels, index),
+            )
+        else:
+            tree = flat_quadtree(band, root_width(band))
+        out.append(tree)
+        squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        for c, q in enumerate(quantized):
+            entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c])
+            if squares.order.size:
+                view = known[c].reshape(shape)[where]
+                debandeletize_bins(view, tree, header.threshold, header.transform_1d)
+            entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
+    return out, quantized, spent
+
+
+def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
+    """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS, entropy.coefficient_contexts())
+    return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))

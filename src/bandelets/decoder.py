@@ -1,0 +1,163 @@
+"""Decoding of .bdl files: parse, entropy-decode, dequantize, restore, invert the transform.
+
+The encoder chooses the number of restoration iterations with :func:`restorations` and
+:func:`decoded_image`, so that it measures exactly what the decoder returns.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
+from itertools import islice
+
+import numpy as np
+
+from . import entropy, frames, metrics, restoration
+from .bandeletize import bandeletize, debandeletize
+from .bitstream import MAX_MEMORY, FormatError, Header, check_memory, unpack
+from .coding import code_image, new_coders
+from .quantize import dequantize
+from .transform import apply_trees
+from .wavelets import padded_shape, wavedec, waverec
+
+__all__ = [
+    "decode",
+    "decode_parsed",
+    "decoded_bins",
+    "restorations",
+    "channel_transforms",
+    "decoded_image",
+    "rebuilt_z",
+]
+
+
+def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
+    """Decode a .bdl file.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole file.
+    restore : bool
+        Run the restoration iterations the file asks for (:mod:`bandelets.restoration`).
+        False: plain dequantization, a faster decode of lower quality (a preview).
+    max_memory : int
+        Refuse a file whose decoding needs more than this many bytes (estimated from its
+        header, see :func:`bandelets.bitstream.check_memory`; default 2 GiB).
+    **limits
+        ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
+
+    Returns
+    -------
+    ndarray, float64, shape (H, W) for one channel or (H, W, C); a normal map's vectors are
+    renormalised to unit length.
+
+    Raises
+    ------
+    FormatError
+        For any corrupt, truncated or unsupported file.
+    """
+    header, streams = unpack(bytes(data), **limits)
+    return decode_parsed(header, streams, restore=restore, max_memory=max_memory)
+
+
+def decode_parsed(
+    header: Header,
+    streams: tuple[bytes, bytes, bytes],
+    *,
+    restore: bool = True,
+    max_memory: int = MAX_MEMORY,
+) -> np.ndarray:
+    """Decode a file already split by :func:`bandelets.bitstream.unpack` (options of :func:`decode`)."""
+    if not restore:
+        header = replace(header, restoration=0)
+    check_memory(header, max_memory)
+    trees, quantized = decoded_bins(header, streams)
+    channels = next(islice(restorations(header, trees, quantized), header.restoration, None))
+    return decoded_image(channels, header)
+
+
+def decoded_bins(header: Header, streams: tuple[bytes, bytes, bytes]) -> tuple[list, list[np.ndarray]]:
+    """The quadtrees and the bin indices, shape (H', W') per channel, that the streams hold."""
+    coders = new_coders(streams)
+    try:
+        trees, quantized, _ = code_image(coders, header)
+        for coder in coders:
+            coder.check()
+    except entropy.CorruptStream as err:
+        raise FormatError(f"corrupt .bdl file: {err}") from None
+    shape = padded_shape((header.height, header.width), header.levels)
+    return trees, [q.reshape(shape) for q in quantized]
+
+
+def restorations(header: Header, trees: list, quantized: list[np.ndarray]):
+    """The channels after 0, 1, 2, ... restoration iterations (:func:`bandelets.restoration.iterate`)."""
+    unit = header.kind == "normal-map" and header.channels == 3
+    return restoration.iterate(
+        quantized,
+        header.threshold,
+        *channel_transforms(header, trees, quantized),
+        unit_vectors=(header.height, header.width) if unit else None,
+    )
+
+
+#: Pixels from which the restoration transforms the channels in parallel threads (independent
+#: transforms; numpy lets go of the GIL on large arrays): a two-channel crease map decodes
+#: 1.3 times faster at 2048 x 2048 and 1024 x 1024, 1.1 times at 512 x 512, but 1.4 times slower
+#: at 256 x 256, where the threads mostly wait for each other (``benchmarks/speed.py``).
+THREADS_FROM = 512 * 512
+
+
+def _channel_map(header: Header):
+    """``each(function, channels)``, the list of ``function(channel)``: in one thread per channel
+    from :data:`THREADS_FROM` pixels on."""
+    if header.channels < 2 or header.height * header.width < THREADS_FROM:
+        return lambda function, channels: [function(channel) for channel in channels]
+    pool = ThreadPoolExecutor(max_workers=header.channels)
+    return lambda function, channels: list(pool.map(function, channels))
+
+
+def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray]):
+    """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
+    inverse. With local frames, those of every level are the ones the decoder finds from the
+    dequantized bins ``quantized`` (:func:`bandelets.frames.to_global`), fixed from then on."""
+    t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
+    each = _channel_map(header)
+    level_frames = None
+    if header.frames:
+        decoded = [
+            apply_trees(dequantize(q, header.threshold), levels, trees, debandeletize, t1d) for q in quantized
+        ]
+        level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
+
+    def analysis(x: np.ndarray) -> np.ndarray:
+        c = each(lambda channel: wavedec(channel, *args), x)
+        if level_frames is not None:
+            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=True)
+        return np.array(each(lambda channel: apply_trees(channel, levels, trees, bandeletize, t1d), c))
+
+    def synthesis(c: np.ndarray) -> np.ndarray:
+        c = each(lambda channel: apply_trees(channel, levels, trees, debandeletize, t1d), c)
+        if level_frames is not None:
+            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=False)
+        return np.array(each(lambda channel: waverec(channel, *args), c))
+
+    return analysis, synthesis
+
+
+def decoded_image(channels, header: Header) -> np.ndarray:
+    """What :func:`decode` returns, from the decoded (padded) channels."""
+    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
+    if not np.all(np.isfinite(out)):
+        raise FormatError("corrupt .bdl file: the decoded values overflow")
+    if header.kind == "normal-map":
+        if header.channels == 2:
+            out = np.concatenate([out, rebuilt_z(out)], axis=-1)
+        out = metrics.unit_vectors(out)
+    return out[..., 0] if header.channels == 1 else out
+
+
+def rebuilt_z(xy: np.ndarray) -> np.ndarray:
+    """``z = sqrt(1 - x^2 - y^2)`` (0 where the decoded ``x, y`` lie outside the unit disc), shape
+    (H, W, 1), of decoded normals ``xy`` of shape (H, W, 2)."""
+    return np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))

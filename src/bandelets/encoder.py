@@ -1,0 +1,432 @@
+"""Encoding of .bdl files: validation, the basis search, quantization with its rate-distortion
+optimisation, entropy coding, the choice of the restoration, and the ``auto`` wavelet.
+
+Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import frames, metrics, ratecontrol, restoration
+from .bandeletize import bandeletize, debandeletize
+from .bitstream import (
+    HEADER_BYTES,
+    MAX_MEMORY,
+    FormatError,
+    Header,
+    check_memory,
+    implied_options,
+    pack,
+    unpack,
+)
+from .coding import code_image, new_coders
+from .decoder import decode, decoded_image, restorations
+from .lagrangian import LAMBDA
+from .layout import approximation_plan
+from .options import check_image, check_options, geometry_options
+from .quantize import PROMOTE_ABOVE, RECONSTRUCTION, dequantize, quantize
+from .transform import apply_trees, best_trees, wavelet_coefficients
+from .wavelets import WAVELETS, max_levels, subband_slices
+
+__all__ = ["AUTO_WAVELET", "AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
+
+
+@dataclass(frozen=True)
+class Encoded:
+    """A .bdl file and what the encoder knows about it."""
+
+    data: bytes
+    threshold: float
+    # Squared quantization error summed over all (padded) coefficients, before any restoration.
+    coefficient_sse: float
+    # PSNR of the decoded file, when the encoder has already measured it (the restoration does).
+    psnr: float | None = None
+    # What the file holds, as the decoder will find it: the quadtrees and the bins of every
+    # channel, shape (H', W') (for the choice of the restoration, without decoding the file).
+    header: Header | None = field(default=None, repr=False, compare=False)
+    trees: list | None = field(default=None, repr=False, compare=False)
+    bins: list | None = field(default=None, repr=False, compare=False)
+
+
+def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encoded:
+    """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
+
+    Rate control calls this repeatedly with the same coefficients: the wavelet transform is
+    done once, the basis search and the coding once per threshold.
+    """
+    threshold = header.threshold
+    before = None
+    if header.frames:
+        coefficients, before = _local_frames(coefficients, header)
+    trees = best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
+    bandelets = [apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients]
+    quantized = [quantize(b, threshold) for b in bandelets]
+    # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
+    # its context, then the bins between 0 and +-1 are chosen again and the image coded again.
+    # Not with local frames: the frames of each level were built from the coarser levels as
+    # Q_T left them, and the decoder must rebuild exactly those.
+    if not header.frames:
+        _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
+        approximation = approximation_plan(bandelets[0].shape, header.levels).order
+        for b, q, bits in zip(bandelets, quantized, spent, strict=True):
+            bits[approximation] = 0.0  # coded as a prediction residual: left alone
+            _optimise_bins(b, q, bits.reshape(q.shape), threshold)
+    # The weighted normal component's error is the weight times the error it makes.
+    scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
+    sse = sum(
+        float(np.sum((b - dequantize(q, threshold)) ** 2)) / scale**2
+        for b, q, scale in zip(bandelets, quantized, scales, strict=True)
+    )
+    splits, dirs, coeffs = coders = new_coders()
+    trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized])
+    data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
+    return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized)
+
+
+#: Lagrange multiplier of the quantization decisions, in T**2 per bit (the search's LAMBDA).
+RDOQ_LAMBDA = LAMBDA
+#: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
+_SIGN_AND_MAGNITUDE_BITS = 1.5
+
+
+def _optimise_bins(values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshold: float) -> None:
+    """Rate-distortion optimised quantization between 0 and +-1, in place.
+
+    ``Q_T`` decides on magnitude alone; here a coefficient of bin 1 becomes 0, or a value of
+    the dead zone above ``PROMOTE_ABOVE T`` becomes +-1, when that lowers
+    ``error + RDOQ_LAMBDA T**2 bits``. The bits come from a first coding pass: a coefficient's
+    ideal code length prices its own choice, and the probability of significance its context
+    had (``2**-bits`` for a zero, about ``2**(1.5 - bits)`` for a +-1) prices the other one.
+
+    Parameters
+    ----------
+    values : ndarray of float, shape (H, W)
+        The coefficients quantized.
+    q : ndarray of int32, shape (H, W)
+        Their bin indices; modified.
+    bits : ndarray of float, shape (H, W)
+        Ideal code length of each coefficient in the first pass; 0 where not to be touched.
+    threshold : float
+    """
+    price = RDOQ_LAMBDA * threshold * threshold
+    a = np.abs(values)
+    # Error removed by coding +-1 instead of 0.
+    gain = a * a - (a - (1.0 + RECONSTRUCTION) * threshold) ** 2
+    ones = (np.abs(q) == 1) & (bits > 0)
+    significant = np.clip(2.0 ** (_SIGN_AND_MAGNITUDE_BITS - bits[ones]), 0.0, 0.5)
+    saved = bits[ones] + np.log2(1.0 - significant)
+    drop = np.zeros(q.shape, bool)
+    drop[ones] = gain[ones] < price * saved
+    zeros = (q == 0) & (bits > 0) & (a > PROMOTE_ABOVE * threshold)
+    significant = np.clip(1.0 - 2.0 ** -bits[zeros], 1e-6, 1.0)
+    extra = _SIGN_AND_MAGNITUDE_BITS - np.log2(significant) - bits[zeros]
+    promote = np.zeros(q.shape, bool)
+    promote[zeros] = gain[zeros] > price * extra
+    q[drop] = 0
+    q[promote] = np.sign(values[promote]).astype(q.dtype)
+
+
+def _local_frames(coefficients: list[np.ndarray], header: Header):
+    """The coefficients to turn into local frames, and the ``before`` hook of :func:`best_trees`
+    that turns each level just before the basis search reaches it.
+
+    The frames of a level come from the approximation and the coarser levels exactly as the
+    decoder will decode them (:func:`bandelets.frames.to_global`): quantized with the trees
+    already chosen, dequantized and turned back.
+    """
+    t, levels, t1d = header.threshold, header.levels, header.transform_1d
+    args = (header.wavelet, levels, header.extension)
+    shape = coefficients[0].shape
+    h, w = shape[0] >> levels, shape[1] >> levels
+    local = [c.copy() for c in coefficients]
+    decoded = [np.zeros(shape) for _ in coefficients]  # what the decoder has so far, global frame
+    for c, d in zip(coefficients, decoded, strict=True):
+        d[:h, :w] = dequantize(quantize(c[:h, :w], t), t)
+    slices = subband_slices(shape, levels)
+    turned = []  # the frames of the level turned last
+
+    def before(index: int, trees: list) -> None:
+        if index % 3:
+            return
+        if turned:  # decode the level just searched, as the decoder will
+            for i in range(index - 3, index):
+                where = slices[i][2]
+                for c, d in zip(local, decoded, strict=True):
+                    q = quantize(bandeletize(c[where], trees[i], t1d), t)
+                    d[where] = debandeletize(dequantize(q, t), trees[i], t1d)
+            frames.rotate(
+                decoded, turned[-1], slices[index - 1][0], levels, header.normal_weight, local=False
+            )
+        level = slices[index][0]
+        turned[:] = [frames.level_frames(decoded, level, *args, header.kind)]
+        frames.rotate(local, turned[-1], level, levels, header.normal_weight, local=True)
+
+    return local, before
+
+
+def encode(
+    array,
+    *,
+    bpp: float | None = None,
+    threshold: float | None = None,
+    psnr: float | None = None,
+    transform: str = "bandelet",
+    kind: str = "image",
+    wavelet: str = "cdf97",
+    transform_1d: str = "alpert2",
+    depth: int = 0,
+    frames: bool = False,
+    normal_weight: float = 2.0,
+    extension: str = "symmetric",
+    restore: bool = True,
+    progress: bool = False,
+    max_memory: int = MAX_MEMORY,
+) -> bytes:
+    """Compress an image, normal map or geometry image into a .bdl file.
+
+    Parameters
+    ----------
+    array : array_like, shape (H, W) or (H, W, C), C <= 4
+        Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
+        A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
+        rebuilds ``z``); otherwise as three channels, in local frames around the coarser
+        decoded normals (:mod:`bandelets.frames`, normal weight
+        :data:`bandelets.frames.NORMAL_MAP_WEIGHT`).
+    bpp, threshold, psnr : float, exactly one
+        Target rate in bits per pixel (the file lands within 3 % below it), quantization
+        threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
+    transform : {"bandelet", "wavelet"}
+        ``"wavelet"`` forces every square to NULL: the same codec without geometry.
+    kind : {"image", "normal-map", "geometry-image"}
+        A normal map is renormalised to unit vectors before coding and after decoding.
+    wavelet : str
+        See :data:`bandelets.wavelets.WAVELETS`, or ``"auto"``: encode with each of
+        :data:`AUTO_CANDIDATES` and keep the better file (twice the time).
+    transform_1d : {"alpert2", "haar"}
+        1D transform along the directions.
+    depth : {0, 8, 16}
+        Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
+    frames : bool
+        Geometry images only (normal maps choose by themselves, see ``array``): code the detail
+        coefficients of each level in local frames (normal, tangents) estimated from the decoded
+        coarser levels (:mod:`bandelets.frames`).
+    normal_weight : float
+        With ``frames``: precision given to the normal component over the tangential ones,
+        from 1/64 to 64.
+    extension : {"symmetric", "spherical"}
+        Geometry images only: boundary extension of the wavelet; ``"spherical"`` for an
+        octahedral spherical geometry image (square, even side: each edge is glued to itself
+        reversed, see :mod:`bandelets.surfaces.octahedral`).
+    restore : bool
+        Let the decoder restore the image (:mod:`bandelets.restoration`) for as many
+        iterations as bring it closest to ``array`` (none if that is best).
+        Costs no bits; the encoder and decoder then take longer (about 5 ms per iteration for
+        256 x 256 x 2).
+    progress : bool
+        Progress bar during rate control.
+    max_memory : int
+        Refuse (``ValueError``) an image whose encoding would need more than this many bytes.
+
+    Returns
+    -------
+    bytes
+    """
+    return encode_with_stats(
+        array,
+        bpp=bpp,
+        threshold=threshold,
+        psnr=psnr,
+        transform=transform,
+        kind=kind,
+        wavelet=wavelet,
+        transform_1d=transform_1d,
+        depth=depth,
+        frames=frames,
+        normal_weight=normal_weight,
+        extension=extension,
+        restore=restore,
+        progress=progress,
+        max_memory=max_memory,
+    ).data
+
+
+def encode_with_stats(
+    array,
+    *,
+    bpp=None,
+    threshold=None,
+    psnr=None,
+    transform="bandelet",
+    kind="image",
+    wavelet="cdf97",
+    transform_1d="alpert2",
+    depth=0,
+    frames=False,
+    normal_weight=2.0,
+    extension="symmetric",
+    restore=True,
+    progress=False,
+    max_memory=MAX_MEMORY,
+) -> Encoded:
+    """:func:`encode`, returning also the threshold used, the predicted error and (when the
+    encoder chose the restoration) the PSNR of the decoded file."""
+    if wavelet == AUTO_WAVELET:
+        return _best_of_wavelets(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            transform=transform,
+            kind=kind,
+            transform_1d=transform_1d,
+            depth=depth,
+            frames=frames,
+            normal_weight=normal_weight,
+            extension=extension,
+            restore=restore,
+            progress=progress,
+            max_memory=max_memory,
+        )
+    x = check_image(array, kind, max_memory)
+    if kind == "normal-map":
+        x = metrics.unit_vectors(x)
+    targets = [v for v in (bpp, threshold, psnr) if v is not None]
+    if len(targets) != 1:
+        raise ValueError("give exactly one of bpp, threshold or psnr")
+    if depth not in (0, 8, 16):
+        raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
+    if wavelet not in WAVELETS:
+        choices = ", ".join((*WAVELETS, AUTO_WAVELET))
+        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {choices}")
+    check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
+    levels = max_levels(x.shape[:2])
+    geometry = geometry_options(kind, x.shape[:2], wavelet, frames, normal_weight, extension)
+    if extension == "spherical":  # no padding: the fold must stay on the image's border
+        while levels > 1 and x.shape[0] % (1 << levels):
+            levels -= 1
+    # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
+    coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
+    if kind == "normal-map":  # three channels: always in local frames
+        geometry = implied_options(kind, coded.shape[2])
+    coefficients = wavelet_coefficients(coded, wavelet, levels, extension)
+
+    def encode_at(t: float) -> Encoded:
+        header = Header(
+            x.shape[0],
+            x.shape[1],
+            coded.shape[2],
+            kind,
+            transform,
+            wavelet,
+            levels,
+            t,
+            depth,
+            transform_1d,
+            **geometry,
+        )
+        return encode_at_threshold(coefficients, header)
+
+    magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
+    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
+    reference = x[..., 0] if x.shape[2] == 1 else x
+
+    def finished(encoded: Encoded) -> Encoded:
+        return _with_restoration(encoded, reference, max_memory) if restore else encoded
+
+    if threshold is not None:
+        return finished(encode_at(float(threshold)))
+    if bpp is not None:
+        if not (np.isfinite(bpp) and bpp > 0):
+            raise ValueError(f"bpp must be a positive number, got {bpp}")
+        target = int(bpp * x.shape[0] * x.shape[1] / 8)
+        if target < HEADER_BYTES:
+            raise ValueError(
+                f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
+                f"{HEADER_BYTES} bytes of header"
+            )
+        model = ratecontrol.size_model(magnitudes)
+        return finished(ratecontrol.for_size(encode_at, target, t_max, model, progress))
+    if not np.isfinite(psnr):
+        raise ValueError(f"psnr must be a finite number, got {psnr}")
+    # Start where a uniform quantizer's error would meet the target.
+    t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
+
+    def quality(encoded: Encoded) -> float:
+        if encoded.psnr is not None:  # measured on the restored image, as decode returns it
+            return encoded.psnr
+        # Our own file: only the caller's memory limit applies, not the limits on foreign files.
+        decoded = decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
+        return metrics.psnr(reference, decoded, kind)
+
+    # Each try is restored: the target is met by the restored image, with the smallest file.
+    return ratecontrol.for_quality(
+        lambda t: finished(encode_at(t)), quality, float(psnr), t_max, t_guess, progress
+    )
+
+
+#: The encoder stops trying more restoration iterations this many after the best so far.
+_RESTORATION_PATIENCE = 10
+
+
+def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) -> Encoded:
+    """``encoded`` with the number of restoration iterations that decodes closest to
+    ``reference`` (the image as :func:`decode` should return it) written into its header."""
+    header = encoded.header
+    try:
+        check_memory(replace(header, restoration=1), max_memory)
+    except FormatError:  # the decoder could not afford it either
+        return encoded
+    best, best_psnr = 0, -np.inf
+    measure = metrics.psnr_against(reference, header.kind)
+    for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins)):
+        value = measure(decoded_image(channels, header))
+        if value > best_psnr:
+            best, best_psnr = n, value
+        if n == restoration.MAX_ITERATIONS or n - best >= _RESTORATION_PATIENCE:
+            break
+    if best == 0:
+        return replace(encoded, psnr=best_psnr)
+    header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
+    return replace(encoded, data=pack(replace(header, restoration=best), streams), psnr=best_psnr)
+
+
+#: The ``wavelet`` that lets the encoder choose, per image and target, among
+#: :data:`AUTO_CANDIDATES`.
+AUTO_WAVELET = "auto"
+#: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD
+#: normal map) once the rate is high enough to code the creases exactly.
+AUTO_CANDIDATES = ("cdf97", "haar")
+
+
+def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **options) -> Encoded:
+    """Encode with each wavelet of :data:`AUTO_CANDIDATES` and keep the best file.
+
+    For a rate target, the one whose decoded image has the higher PSNR; for a quality target
+    the smaller file; at a fixed threshold the smaller ``error + LAMBDA T**2 bits``.
+    """
+    # The spherical extension exists for CDF 9/7 only.
+    candidates = AUTO_CANDIDATES if options.get("extension", "symmetric") == "symmetric" else ("cdf97",)
+    files = [
+        encode_with_stats(
+            array,
+            bpp=bpp,
+            threshold=threshold,
+            psnr=psnr,
+            kind=kind,
+            wavelet=w,
+            max_memory=max_memory,
+            **options,
+        )
+        for w in candidates
+    ]
+    if psnr is not None:
+        return min(files, key=lambda f: len(f.data))
+    if threshold is not None:
+        return min(files, key=lambda f: f.coefficient_sse + LAMBDA * f.threshold**2 * 8 * len(f.data))
+    x = check_image(array, kind, max_memory)
+    reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
+    limits = dict(max_memory=max_memory, max_side=2**32, max_samples=2**64)
+    return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))
