@@ -28,8 +28,8 @@ import pywt
 from scipy import ndimage
 
 import bandelets
-from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, transform_rows
-from bandelets.bitstream import Header
+from bandelets.bandeletize import bandeletize, transform_rows
+from bandelets.bitstream import TRANSFORMS_1D, Header
 from bandelets.coding import code_image, new_coders
 from bandelets.encoder import encode_with_stats
 from bandelets.geometry import directions

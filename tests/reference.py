@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from bandelets import coding, decoder, encoder, lagrangian, quadtree, transform, treecoding
-from bandelets.bandeletize import TRANSFORMS_1D, alpert_matrices
+from bandelets.bandeletize import ORDER, alpert_matrices
 from bandelets.geometry import directions, zigzag
 from bandelets.layout import Segment, _subband_box
 from bandelets.quantize import MAX_INDEX, RECONSTRUCTION
@@ -51,7 +51,7 @@ def dequantize(q, threshold):
 
 def transform_rows(x: np.ndarray, kind: str, inverse: bool = False) -> np.ndarray:
     """The multiwavelet of every row of ``x`` (m, n): one 2k x 2k matrix per block and level."""
-    k = TRANSFORMS_1D.index(kind) + 1
+    k = ORDER[kind]
     mats = alpert_matrices(x.shape[1], k)
     v = np.array(x, np.float64)
     sizes = [x.shape[1] >> level for level in range(mats.shape[0])]
@@ -190,7 +190,7 @@ def best_directions(
     orders = directions(width)[1]
     n_dirs = len(orders)
     stride = lagrangian.REFINE_STRIDE if n_dirs > lagrangian.REFINE_ABOVE else 1
-    k = TRANSFORMS_1D.index(transform_1d) + 1
+    k = ORDER[transform_1d]
     rows, cols = subbands.shape[1] // width, subbands.shape[2] // width
     lam = lagrangian.LAMBDA * threshold * threshold
     cost = np.empty((rows, cols))
@@ -303,7 +303,7 @@ def approximation_plan(shape, levels):
 
 
 def subband_plan(shape, levels, index, tree, transform_1d):
-    k = TRANSFORMS_1D.index(transform_1d) + 1
+    k = ORDER[transform_1d]
     level, orientation, _ = subband_slices(shape, levels)[index]
     box = _subband_box(shape, level, orientation)
     parent = _subband_box(shape, level + 1, orientation) if level < levels else None

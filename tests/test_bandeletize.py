@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, transform_rows
+from bandelets.bandeletize import bandeletize, debandeletize, transform_rows
+from bandelets.bitstream import TRANSFORMS_1D
 from bandelets.geometry import directions, zigzag
 from bandelets.quadtree import best_quadtree
 

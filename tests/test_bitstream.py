@@ -12,8 +12,16 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets.bitstream import FORMAT_VERSION, MAGIC, FormatError, Header, implied_options, pack, unpack
-from bandelets.frames import NORMAL_MAP_WEIGHT
+from bandelets.bitstream import (
+    FORMAT_VERSION,
+    MAGIC,
+    NORMAL_MAP_WEIGHT,
+    FormatError,
+    Header,
+    implied_options,
+    pack,
+    unpack,
+)
 
 HEADER_SIZE = 41  # fixed fields, before the streams
 GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields

@@ -8,9 +8,9 @@ from conftest import straight_edge
 
 import bandelets
 from bandelets import decoder, encoder, metrics
-from bandelets.bitstream import unpack
+from bandelets.bitstream import WAVELETS, unpack
 from bandelets.lagrangian import LAMBDA
-from bandelets.wavelets import WAVELETS, padded_shape, subband_slices
+from bandelets.wavelets import padded_shape, subband_slices
 
 
 def _n_bandelet_squares(b) -> int:

@@ -7,7 +7,7 @@ import pytest
 
 import bandelets
 from bandelets import frames, metrics
-from bandelets.bitstream import unpack
+from bandelets.bitstream import NORMAL_MAP_WEIGHT, unpack
 from bandelets.encoder import encode_with_stats
 from bandelets.surfaces import octahedral
 from bandelets.wavelets import wavedec
@@ -112,7 +112,7 @@ def test_normal_maps_of_three_channels_are_coded_in_local_frames():
     normals = _sphere_normals(64)
     data = bandelets.encode(normals, bpp=1.0, kind="normal-map")
     header = unpack(data)[0]
-    assert (header.channels, header.frames, header.normal_weight) == (3, True, frames.NORMAL_MAP_WEIGHT)
+    assert (header.channels, header.frames, header.normal_weight) == (3, True, NORMAL_MAP_WEIGHT)
     assert metrics.psnr(normals, bandelets.decode(data), "normal-map") > 35
 
 
@@ -183,7 +183,7 @@ def test_bad_geometry_options_are_refused(array, options, words):
 def test_memory_estimate_covers_the_decoding_with_frames():
     import tracemalloc
 
-    from bandelets.bitstream import decoder_memory
+    from bandelets.memory import decoder_memory
 
     data = bandelets.encode(
         _bumpy_sphere(128), bpp=2.0, kind="geometry-image", frames=True, transform="wavelet"

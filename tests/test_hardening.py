@@ -20,16 +20,8 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets.bitstream import (
-    MAX_MEMORY,
-    FormatError,
-    Header,
-    decoder_memory,
-    encoder_memory,
-    implied_options,
-    pack,
-    unpack,
-)
+from bandelets.bitstream import MAX_MEMORY, FormatError, Header, implied_options, pack, unpack
+from bandelets.memory import decoder_memory, encoder_memory
 
 DATA = Path(__file__).resolve().parent / "data"
 GOLDEN = sorted(DATA.glob("*.bdl"))

@@ -16,7 +16,8 @@ from numba import njit
 
 import bandelets
 from bandelets import lagrangian, layout, quantize
-from bandelets.bandeletize import TRANSFORMS_1D, bandeletize, debandeletize, debandeletize_bins
+from bandelets.bandeletize import bandeletize, debandeletize, debandeletize_bins
+from bandelets.bitstream import TRANSFORMS_1D
 from bandelets.coding import code_image, new_coders
 from bandelets.transform import best_trees, wavelet_coefficients
 from bandelets.wavelets import max_levels, subband_slices

@@ -26,7 +26,7 @@ from .geometry import directions, zigzag
 from .quantize import MAX_INDEX, RECONSTRUCTION
 
 __all__ = [
-    "TRANSFORMS_1D",
+    "ORDER",
     "alpert_matrices",
     "multiwavelet_inplace",
     "transform_rows",
@@ -35,9 +35,10 @@ __all__ = [
     "debandeletize_bins",
 ]
 
-#: 1D transforms along the reordered samples, by the order ``k`` of their polynomial
-#: reproduction: Haar (constants) and Alpert's multiwavelet with ``k = 2`` (straight lines).
-TRANSFORMS_1D = ("haar", "alpert2")
+#: The order ``k`` of the polynomial reproduction of each 1D transform along the reordered samples
+#: (:data:`bandelets.bitstream.TRANSFORMS_1D`): Haar (constants) and Alpert's multiwavelet with
+#: ``k = 2`` (straight lines).
+ORDER = {"haar": 1, "alpert2": 2}
 
 
 def _dot(a, b) -> float:
@@ -174,7 +175,7 @@ def _rows(x: np.ndarray, mats: np.ndarray, inverse: bool) -> np.ndarray:
 
 def transform_rows(x: np.ndarray, kind: str = "alpert2", inverse: bool = False) -> np.ndarray:
     """:func:`multiwavelet_inplace` (or its inverse) of every row of ``x``, shape (m, n)."""
-    k = TRANSFORMS_1D.index(kind) + 1
+    k = ORDER[kind]
     return _rows(np.ascontiguousarray(x, dtype=np.float64), alpert_matrices(x.shape[1], k), inverse)
 
 
@@ -216,7 +217,7 @@ def _squares(source, out, width, top, left, dirs, orders, stored, mats, inverse)
 def _transform(subband: np.ndarray, tree, kind: str, inverse: bool) -> np.ndarray:
     subband = np.asarray(subband, dtype=np.float64)
     out = subband.copy()
-    k = TRANSFORMS_1D.index(kind) + 1
+    k = ORDER[kind]
     for width, orders, top, left, dirs in _square_groups(tree):
         mats = alpert_matrices(width * width, k)
         _squares(subband, out, width, top, left, dirs, orders, zigzag(width), mats, inverse)
@@ -233,7 +234,7 @@ def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     tree : bandelets.quadtree.Quadtree
         Leaf squares and their directions.
     kind : str
-        1D transform, one of :data:`TRANSFORMS_1D`.
+        1D transform, one of :data:`bandelets.bitstream.TRANSFORMS_1D`.
 
     Returns
     -------
@@ -283,9 +284,9 @@ def debandeletize_bins(bins: np.ndarray, tree, threshold: float, kind: str = "al
     threshold : float
         ``T``.
     kind : str
-        1D transform, one of :data:`TRANSFORMS_1D`.
+        1D transform, one of :data:`bandelets.bitstream.TRANSFORMS_1D`.
     """
-    k = TRANSFORMS_1D.index(kind) + 1
+    k = ORDER[kind]
     for width, orders, top, left, dirs in _square_groups(tree):
         mats = alpert_matrices(width * width, k)
         _bins(bins, width, top, left, dirs, orders, zigzag(width), mats, float(threshold))

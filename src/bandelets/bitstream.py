@@ -5,13 +5,13 @@ Layout (little endian)::
     offset  size  field
     0       4     magic b"BDL\\x1a"
     4       1     format version (FORMAT_VERSION)
-    5       1     kind: 0 image, 1 normal-map, 2 geometry-image
-    6       1     transform: 0 bandelet, 1 wavelet
-    7       1     wavelet: index into bandelets.wavelets.WAVELETS
+    5       1     kind: KIND_CODES (0 image, 1 normal-map, 2 geometry-image)
+    6       1     transform: TRANSFORM_CODES (0 bandelet, 1 wavelet)
+    7       1     wavelet: WAVELET_CODES
     8       1     wavelet levels
     9       1     channels coded (1 to 4; a normal map: 3, or 2 when z is rebuilt, see below)
     10      1     source sample depth: 0 float, 8 or 16 (PNG bits, for decoding back to PNG)
-    11      1     1D transform along the directions: 0 haar, 1 alpert2
+    11      1     1D transform along the directions: TRANSFORM_1D_CODES (0 haar, 1 alpert2)
     12      4     height
     16      4     width
     20      8     threshold T (float64)
@@ -28,47 +28,57 @@ restoration byte; version 4 changed the restoration's penalty (a log total varia
 the total variation) and restores a normal map coded with its three channels on the unit sphere
 (:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty, codes a
 normal map of three channels in local frames around its coarser normals (implied by the kind and
-the channel count, weight :data:`bandelets.frames.NORMAL_MAP_WEIGHT`: no header field) and lets
+the channel count, weight :data:`NORMAL_MAP_WEIGHT`: no header field) and lets
 files with local frames be restored. Version 6 fixed the basis of Alpert's multiwavelet by
 construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
 rotation depended on the CPU's LAPACK kernels). This build reads version 6 only.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
-    0       1     wavelet boundary extension: index into bandelets.wavelets.EXTENSIONS
+    0       1     wavelet boundary extension: EXTENSION_CODES
                   (0 symmetric, 1 spherical: cdf97, square, side a multiple of 2**levels)
     1       1     local frames: 0 off, 1 on (:mod:`bandelets.frames`)
     2       8     weight of the normal component (float64; 1 when the frames are off)
 
 Every field is validated before anything is allocated; :class:`FormatError` (a ``ValueError``)
-names what is wrong. Beyond the size limits, :func:`check_memory` refuses a file whose decoding
-would need more than ``max_memory`` bytes: a few bytes of range-coded zeros can legitimately
-describe a huge image, so the size of the file says nothing about the work it asks for.
+names what is wrong. Beyond the size limits, :func:`bandelets.memory.check_memory` refuses a file
+whose decoding would need more than ``max_memory`` bytes: a few bytes of range-coded zeros can
+legitimately describe a huge image, so the size of the file says nothing about the work it asks for.
+
+This module imports nothing from the package: it owns the codes written to disk
+(:data:`KIND_CODES`, :data:`WAVELET_CODES`, ...) and the bounds of the fields, and the
+algorithms take their names from it; the command line reads it without loading numba.
 """
 
 from __future__ import annotations
 
+import math
 import struct
 import zlib
 from dataclasses import dataclass, replace
-
-import numpy as np
-
-from .bandeletize import TRANSFORMS_1D
-from .frames import NORMAL_MAP_WEIGHT
-from .restoration import MAX_ITERATIONS
-from .wavelets import EXTENSIONS, MAX_LEVELS, WAVELETS, padded_shape
+from typing import Literal
 
 __all__ = [
     "FORMAT_VERSION",
+    "KIND_CODES",
+    "TRANSFORM_CODES",
+    "WAVELET_CODES",
+    "TRANSFORM_1D_CODES",
+    "EXTENSION_CODES",
     "KINDS",
     "TRANSFORMS",
+    "WAVELETS",
+    "TRANSFORMS_1D",
+    "EXTENSIONS",
+    "Kind",
+    "MAX_LEVELS",
+    "MAX_RESTORATION",
+    "NORMAL_MAP_WEIGHT",
+    "MIN_NORMAL_WEIGHT",
+    "MAX_NORMAL_WEIGHT",
     "MAX_SIDE",
     "MAX_SAMPLES",
     "MAX_MEMORY",
-    "check_memory",
-    "decoder_memory",
-    "encoder_memory",
     "FormatError",
     "HEADER_BYTES",
     "Header",
@@ -78,33 +88,40 @@ __all__ = [
 
 MAGIC = b"BDL\x1a"
 FORMAT_VERSION = 6
-KINDS = ("image", "normal-map", "geometry-image")
-TRANSFORMS = ("bandelet", "wavelet")
+
+# The code written to disk for each choice. The codes are the format: never renumber one, only
+# add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
+KIND_CODES = {"image": 0, "normal-map": 1, "geometry-image": 2}
+TRANSFORM_CODES = {"bandelet": 0, "wavelet": 1}
+#: Wavelets (:mod:`bandelets.wavelets`).
+WAVELET_CODES = {"cdf97": 0, "haar": 1, "db2": 2, "db4": 3, "db6": 4, "db8": 5}
+#: 1D transforms along the directions (:mod:`bandelets.bandeletize`).
+TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
+#: Boundary extensions of ``cdf97`` (geometry images only).
+EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
+KINDS, TRANSFORMS, WAVELETS, TRANSFORMS_1D, EXTENSIONS = map(
+    tuple, (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
+)
+Kind = Literal["image", "normal-map", "geometry-image"]
+_KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF = (
+    {code: name for name, code in codes.items()}
+    for codes in (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
+)
+
+#: Most wavelet decomposition levels a file may have.
+MAX_LEVELS = 6
+#: Most restoration iterations a file may ask for (one byte; :mod:`bandelets.restoration`).
+MAX_RESTORATION = 100
+#: Weight of the normal component of the details of a normal map of three channels, coded in
+#: local frames (implied by the kind and the channel count: no header field; chosen in
+#: :mod:`bandelets.frames`).
+NORMAL_MAP_WEIGHT = 0.35
 #: Largest side and sample count a decoder accepts by default.
 MAX_SIDE = 16384
 MAX_SAMPLES = 2**28
-#: Largest working set, in bytes, the decoder (and the encoder) accepts by default.
+#: Largest working set, in bytes, the decoder (and the encoder) accepts by default
+#: (:mod:`bandelets.memory`).
 MAX_MEMORY = 2 * 2**30
-
-# Working set per padded pixel and per padded sample, measured with tracemalloc (peak of the
-# numpy allocations, JIT compiled beforehand) on generated normal maps and their first channel:
-# decode 512 x 512 x 1 and 1024 x 1024 x 1 and 2048 x 2048 x 1 peak at 72 B/sample,
-# 512 x 512 x 3 and 1024 x 1024 x 3 at 42 B/sample, i.e. about 45 B/pixel + 27 B/sample;
-# the estimate rounds up. Encoding at a fixed threshold peaks at 164 MiB for 512 x 512 x 1,
-# 387 MiB for 2048 x 2048 x 1 (about 150 MiB of tables, the reorderings of every direction up
-# to 32 x 32, plus 59 B/sample), 213 MiB for 1024 x 1024 x 3; a bpp target (rate control)
-# peaks no higher than a fixed threshold (512 x 512 x 3, 170 MiB). The estimate rounds up.
-# The decoder transforms the channels in parallel threads, so its peak varies with how they
-# interleave: up to 162 B/pixel for 128 x 192 x 3 and 153 for 512 x 512 x 3 (15 decodes each),
-# hence 48 B/sample rather than 32.
-_DECODE_PER_PIXEL, _DECODE_PER_SAMPLE = 48, 48
-# Local frames add the surface of the coarser levels and its frames: 256 x 256
-# and 512 x 512 peak at 153 B/pixel against 119 B/pixel without.
-_DECODE_FRAMES_PER_PIXEL = 48
-# The restoration (bin bounds, the penalty's gradient) peaks at 85 B/pixel for 512 x 512 x 1
-# and 1024 x 1024 x 1, 237 B/pixel for 512 x 512 x 3, against 54 and 90 without.
-_DECODE_RESTORATION_PER_SAMPLE = 56
-_ENCODE_FIXED, _ENCODE_PER_SAMPLE = 160 * 2**20, 96
 
 _FIXED = struct.Struct("<4sBBBBBBBBIId3IB")
 #: Size of the smallest possible file: the fixed header and the CRC.
@@ -151,56 +168,18 @@ def implied_options(kind: str, channels: int) -> dict:
     return {}
 
 
-def decoder_memory(
-    height: int, width: int, channels: int, levels: int, frames: bool = False, restoration: bool = False
-) -> int:
-    """Estimated peak bytes the decoder allocates for an image of this size (``frames``: local
-    frames; ``restoration``: restoration iterations)."""
-    rows, cols = padded_shape((height, width), levels)
-    extra = _DECODE_FRAMES_PER_PIXEL if frames else 0
-    per_sample = _DECODE_PER_SAMPLE + (_DECODE_RESTORATION_PER_SAMPLE if restoration else 0)
-    return rows * cols * (_DECODE_PER_PIXEL + extra + per_sample * channels)
-
-
-def encoder_memory(height: int, width: int, channels: int) -> int:
-    """Estimated peak bytes the encoder allocates for an image of this size."""
-    rows, cols = padded_shape((height, width), MAX_LEVELS)
-    return _ENCODE_FIXED + rows * cols * channels * _ENCODE_PER_SAMPLE
-
-
-def check_memory(header: Header, max_memory: int = MAX_MEMORY) -> None:
-    """Raise :class:`FormatError` if decoding ``header`` needs more than ``max_memory`` bytes.
-
-    Also refuses more wavelet levels than the image has octaves: that is pure padding (the
-    encoder never writes it), and the first use of a deep level costs seconds (the synthesis
-    norms of :mod:`bandelets.wavelets`).
-    """
-    if header.levels > 1 and 2**header.levels > min(header.height, header.width):
-        raise FormatError(
-            f"corrupt .bdl file: {header.levels} wavelet levels for a {header.width} x {header.height} image"
-        )
-    need = decoder_memory(
-        header.height, header.width, header.channels, header.levels, header.frames, header.restoration > 0
-    )
-    if need > max_memory:
-        raise FormatError(
-            f"decoding this {header.width} x {header.height} x {header.channels} image needs about "
-            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB (max_memory)"
-        )
-
-
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     """Assemble a .bdl file from its header and its three coded streams."""
     body = _FIXED.pack(
         MAGIC,
         FORMAT_VERSION,
-        KINDS.index(header.kind),
-        TRANSFORMS.index(header.transform),
-        WAVELETS.index(header.wavelet),
+        KIND_CODES[header.kind],
+        TRANSFORM_CODES[header.transform],
+        WAVELET_CODES[header.wavelet],
         header.levels,
         header.channels,
         header.depth,
-        TRANSFORMS_1D.index(header.transform_1d),
+        TRANSFORM_1D_CODES[header.transform_1d],
         header.height,
         header.width,
         header.threshold,
@@ -219,7 +198,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"normal weight: {header}"
             )
     if header.kind == "geometry-image":
-        body += _GEOMETRY.pack(EXTENSIONS.index(header.extension), int(header.frames), header.normal_weight)
+        body += _GEOMETRY.pack(EXTENSION_CODES[header.extension], int(header.frames), header.normal_weight)
     body += b"".join(streams)
     return body + struct.pack("<I", zlib.crc32(body))
 
@@ -258,21 +237,23 @@ def unpack(
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
     if zlib.crc32(body) != crc:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
-    kind, transform, wavelet, levels, channels, depth, along, height, width, threshold = fields[2:12]
+    kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
+    height, width, threshold = fields[9:12]
     lengths, restoration = fields[12:15], fields[15]
-    start = _FIXED.size + (_GEOMETRY.size if kind == KINDS.index("geometry-image") else 0)
+    kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
+    wavelet, along = _WAVELET_OF.get(wavelet_code), _TRANSFORM_1D_OF.get(along_code)
+    start = _FIXED.size + (_GEOMETRY.size if kind == "geometry-image" else 0)
     checks = [
-        (kind < len(KINDS), f"unknown kind code {kind}"),
+        (kind is not None, f"unknown kind code {kind_code}"),
         (
-            kind == 0 or channels == 3 or (kind == 1 and channels == 2),
-            f"a {KINDS[min(kind, 2)]} needs 3 channels{' (or 2)' if kind == 1 else ''}, "
-            f"the file has {channels}",
+            kind in (None, "image") or channels == 3 or (kind == "normal-map" and channels == 2),
+            f"a {kind} needs 3 channels{' (or 2)' if kind == 'normal-map' else ''}, the file has {channels}",
         ),
-        (transform < len(TRANSFORMS), f"unknown transform code {transform}"),
-        (wavelet < len(WAVELETS), f"unknown wavelet code {wavelet}"),
+        (transform is not None, f"unknown transform code {transform_code}"),
+        (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
         (1 <= channels <= 4, f"bad channel count {channels}"),
         (depth in (0, 8, 16), f"bad sample depth {depth}"),
-        (along < len(TRANSFORMS_1D), f"unknown 1D transform code {along}"),
+        (along is not None, f"unknown 1D transform code {along_code}"),
         (
             1 <= height <= max_side and 1 <= width <= max_side,
             f"image size {width} x {height} exceeds the limit of {max_side} per side",
@@ -281,31 +262,30 @@ def unpack(
             height * width * channels <= max_samples,
             f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
         ),
-        (np.isfinite(threshold) and threshold > 0, f"bad threshold {threshold}"),
+        (math.isfinite(threshold) and threshold > 0, f"bad threshold {threshold}"),
         (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
-        (restoration <= MAX_ITERATIONS, f"{restoration} restoration iterations (at most {MAX_ITERATIONS})"),
+        (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
     ]
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
     if not 1 <= levels <= MAX_LEVELS:
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
-    options = {}
-    if KINDS[kind] == "geometry-image":
-        options = _geometry_options(data, WAVELETS[wavelet], levels, height, width)
+    if kind == "geometry-image":
+        options = _geometry_options(data, wavelet, levels, height, width)
     else:
-        options = implied_options(KINDS[kind], channels)
+        options = implied_options(kind, channels)
     header = Header(
         height,
         width,
         channels,
-        KINDS[kind],
-        TRANSFORMS[transform],
-        WAVELETS[wavelet],
+        kind,
+        transform,
+        wavelet,
         levels,
         threshold,
         depth,
-        TRANSFORMS_1D[along],
+        along,
         **options,
         restoration=restoration,
     )
@@ -320,18 +300,18 @@ def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width
     """Validated geometry-image options of a file (its fixed header already validated)."""
     extension, frames, weight = _GEOMETRY.unpack_from(data, _FIXED.size)
     checks = [
-        (extension < len(EXTENSIONS), f"unknown extension code {extension}"),
+        (extension in _EXTENSION_OF, f"unknown extension code {extension}"),
         (frames in (0, 1), f"bad local frames flag {frames}"),
         (
             bool(frames) or weight == 1.0,
             f"normal weight {weight} without local frames",
         ),
         (
-            np.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT,
+            math.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT,
             f"bad normal weight {weight}",
         ),
         (
-            extension != EXTENSIONS.index("spherical")
+            extension != EXTENSION_CODES["spherical"]
             or (wavelet == "cdf97" and height == width and height % (1 << levels) == 0),
             f"spherical extension of a {width} x {height} {wavelet} image at {levels} levels",
         ),
@@ -339,4 +319,4 @@ def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
-    return {"extension": EXTENSIONS[extension], "frames": bool(frames), "normal_weight": weight}
+    return {"extension": _EXTENSION_OF[extension], "frames": bool(frames), "normal_weight": weight}

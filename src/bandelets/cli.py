@@ -1,7 +1,8 @@
 """Command line: argument parsing and error reporting only.
 
 Every command imports the codec (numba, imagecodecs) when it runs, so that
-``bandelets --help`` starts at once. Any error the user can cause ends in one line
+``bandelets --help`` starts at once; the choices come from :mod:`bandelets.bitstream`, which
+imports nothing. Any error the user can cause ends in one line
 ``bandelets: error: ...`` on stderr and exit status 2; outputs are written to a temporary
 file and renamed, so a failed command leaves nothing behind.
 """
@@ -16,13 +17,9 @@ import sys
 import warnings
 from pathlib import Path
 
-__all__ = ["main"]
+from .bitstream import EXTENSIONS, KINDS, TRANSFORMS, TRANSFORMS_1D, WAVELETS
 
-# Copies of bandelets.bitstream's names (importing it would load numba before --help);
-# tests/test_cli.py checks they agree.
-KINDS = ("image", "normal-map", "geometry-image")
-TRANSFORMS = ("bandelet", "wavelet")
-EXTENSIONS = ("symmetric", "spherical")
+__all__ = ["main"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -60,12 +57,12 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--wavelet",
         default="cdf97",
-        help="cdf97 (default), haar, db2, db4, db6, db8, or auto (the better of cdf97 and haar, in twice "
-        "the time)",
+        help=f"{', '.join(WAVELETS)} (default cdf97), or auto (the better of cdf97 and haar, "
+        "in twice the time)",
     )
     p.add_argument(
         "--transform-1d",
-        choices=("alpert2", "haar"),
+        choices=TRANSFORMS_1D,
         default="alpert2",
         help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar",
     )

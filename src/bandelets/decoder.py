@@ -14,8 +14,9 @@ import numpy as np
 
 from . import entropy, frames, metrics, restoration
 from .bandeletize import bandeletize, debandeletize
-from .bitstream import MAX_MEMORY, FormatError, Header, check_memory, unpack
+from .bitstream import MAX_MEMORY, FormatError, Header, unpack
 from .coding import code_image, new_coders
+from .memory import check_memory
 from .quantize import dequantize
 from .transform import apply_trees
 from .wavelets import padded_shape, wavedec, waverec
@@ -43,7 +44,7 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
         False: plain dequantization, a faster decode of lower quality (a preview).
     max_memory : int
         Refuse a file whose decoding needs more than this many bytes (estimated from its
-        header, see :func:`bandelets.bitstream.check_memory`; default 2 GiB).
+        header, see :func:`bandelets.memory.check_memory`; default 2 GiB).
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
 

@@ -10,14 +10,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import frames, metrics, ratecontrol, restoration
+from . import frames, metrics, ratecontrol
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     HEADER_BYTES,
     MAX_MEMORY,
+    MAX_RESTORATION,
+    WAVELETS,
     FormatError,
     Header,
-    check_memory,
     implied_options,
     pack,
     unpack,
@@ -26,10 +27,11 @@ from .coding import code_image, new_coders
 from .decoder import decode, decoded_image, restorations
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
+from .memory import check_memory
 from .options import check_image, check_options, geometry_options
 from .quantize import PROMOTE_ABOVE, RECONSTRUCTION, dequantize, quantize
 from .transform import apply_trees, best_trees, wavelet_coefficients
-from .wavelets import WAVELETS, max_levels, subband_slices
+from .wavelets import max_levels, subband_slices
 
 __all__ = ["AUTO_WAVELET", "AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
 
@@ -194,7 +196,7 @@ def encode(
         A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
         rebuilds ``z``); otherwise as three channels, in local frames around the coarser
         decoded normals (:mod:`bandelets.frames`, normal weight
-        :data:`bandelets.frames.NORMAL_MAP_WEIGHT`).
+        :data:`bandelets.bitstream.NORMAL_MAP_WEIGHT`).
     bpp, threshold, psnr : float, exactly one
         Target rate in bits per pixel (the file lands within 3 % below it), quantization
         threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
@@ -203,7 +205,7 @@ def encode(
     kind : {"image", "normal-map", "geometry-image"}
         A normal map is renormalised to unit vectors before coding and after decoding.
     wavelet : str
-        See :data:`bandelets.wavelets.WAVELETS`, or ``"auto"``: encode with each of
+        See :data:`bandelets.bitstream.WAVELETS`, or ``"auto"``: encode with each of
         :data:`AUTO_CANDIDATES` and keep the better file (twice the time).
     transform_1d : {"alpert2", "haar"}
         1D transform along the directions.
@@ -385,7 +387,7 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
         value = measure(decoded_image(channels, header))
         if value > best_psnr:
             best, best_psnr = n, value
-        if n == restoration.MAX_ITERATIONS or n - best >= _RESTORATION_PATIENCE:
+        if n == MAX_RESTORATION or n - best >= _RESTORATION_PATIENCE:
             break
     if best == 0:
         return replace(encoded, psnr=best_psnr)

@@ -24,8 +24,8 @@ meshes) are coded in local frames too, a step beyond the paper: the details of a
 vectors are nearly tangent to it (``n . dn = 0``), and the decoder renormalises every vector,
 which takes off most of an error along it. So the frame's normal is the coarse decoded normal
 itself (:func:`normal_map_frames`), the component along it is small (of second order) and is
-coded with the weight :data:`NORMAL_MAP_WEIGHT`. On the 256 x 256 normal maps of fandisk and
-bunny (restored both ways) this gained +0.6 and +0.5 dB BD-PSNR against every anchor of
+coded with the weight :data:`bandelets.bitstream.NORMAL_MAP_WEIGHT`. On the 256 x 256 normal
+maps of fandisk and bunny (restored both ways) this gained +0.6 and +0.5 dB BD-PSNR against every anchor of
 ``python benchmarks/rd_surfaces.py --only mesh-normals`` over coding x, y, z as they are. The
 weight was chosen among 0.25, 0.35, 0.5 and 0.7 in prototype runs (scripts not kept): +0.60 /
 +0.62 / +0.56 / +0.30 dB on fandisk, +0.45 / +0.53 / +0.48 / - on bunny.
@@ -38,7 +38,6 @@ import numpy as np
 from .wavelets import subband_slices, waverec
 
 __all__ = [
-    "NORMAL_MAP_WEIGHT",
     "frame_field",
     "normal_map_frames",
     "level_frames",
@@ -46,9 +45,6 @@ __all__ = [
     "rotate_levels",
     "to_global",
 ]
-
-#: Weight of the normal component of a normal map's details (in the frame of its coarse normal).
-NORMAL_MAP_WEIGHT = 0.35
 
 # The cross product of the tangents is taken as degenerate below this fraction of the
 # product of their lengths (tangents parallel), or when either tangent is zero.

@@ -37,7 +37,7 @@ from functools import cache
 import numpy as np
 from numba import njit, prange
 
-from .bandeletize import TRANSFORMS_1D, alpert_matrices, multiwavelet_inplace
+from .bandeletize import ORDER, alpert_matrices, multiwavelet_inplace
 from .geometry import directions
 from .quadtree import MAX_WIDTH
 from .quantize import bin_and_error
@@ -279,7 +279,7 @@ def best_directions(
     allow_directions : bool
         False prices NULL only (the wavelet baseline).
     transform_1d : str
-        One of :data:`bandelets.bandeletize.TRANSFORMS_1D`.
+        One of :data:`bandelets.bitstream.TRANSFORMS_1D`.
     predicted : ndarray of int, shape (h // width, w // width), optional
         Direction each square's geometry coder will predict (-1: none); directions near it
         are priced at what coding them as an offset costs.
@@ -305,7 +305,7 @@ def best_directions(
         np.ascontiguousarray(subbands, dtype=np.float64),
         width,
         directions(width)[1],
-        alpert_matrices(width * width, TRANSFORMS_1D.index(transform_1d) + 1),
+        alpert_matrices(width * width, ORDER[transform_1d]),
         float(threshold),
         model,
         null_bits,

@@ -33,7 +33,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from .bandeletize import TRANSFORMS_1D
+from .bandeletize import ORDER
 from .geometry import zigzag
 from .quadtree import MAX_WIDTH, MIN_WIDTH, Quadtree
 from .wavelets import subband_slices
@@ -178,7 +178,7 @@ def subband_plan(
     transform_1d : str
         The 1D transform of the bandelet squares (sets where its scales start).
     """
-    k = TRANSFORMS_1D.index(transform_1d) + 1
+    k = ORDER[transform_1d]
     level, orientation, _ = subband_slices(shape, levels)[index]
     box = _subband_box(shape, level, orientation)
     parent = np.array(_subband_box(shape, level + 1, orientation)[:2] if level < levels else (), np.int64)

@@ -4,9 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bandeletize import TRANSFORMS_1D
-from .bitstream import KINDS, MAX_MEMORY, MAX_NORMAL_WEIGHT, MIN_NORMAL_WEIGHT, TRANSFORMS, encoder_memory
-from .wavelets import WAVELETS, check_extension
+from .bitstream import (
+    KINDS,
+    MAX_MEMORY,
+    MAX_NORMAL_WEIGHT,
+    MIN_NORMAL_WEIGHT,
+    TRANSFORMS,
+    TRANSFORMS_1D,
+    WAVELETS,
+)
+from .memory import encoder_memory
+from .wavelets import check_extension
 
 __all__ = ["check_image", "check_options", "check_geometry_options", "geometry_options"]
 
@@ -15,7 +23,7 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
     """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable.
 
     An image whose encoding would need more than ``max_memory`` bytes
-    (:func:`bandelets.bitstream.encoder_memory`) is refused before any work on it (a float64
+    (:func:`bandelets.memory.encoder_memory`) is refused before any work on it (a float64
     array is not copied; another dtype is converted first).
     """
     if kind not in KINDS:

@@ -52,7 +52,6 @@ __all__ = [
     "EDGE",
     "SECOND_ORDER",
     "SECOND_EDGE",
-    "MAX_ITERATIONS",
     "bin_bounds",
     "penalty_gradient",
     "iterate",
@@ -72,8 +71,6 @@ SECOND_ORDER = 0.25
 #: Second-difference magnitude, in units of ``T``, above which that penalty grows only
 #: logarithmically (the kink of a crease).
 SECOND_EDGE = 0.5
-#: Most iterations a file may ask for (its header stores the count in one byte).
-MAX_ITERATIONS = 100
 #: What the encoder's rate-distortion optimised quantization may do to a value (see
 #: ``bandelets.encoder._optimise_bins``): a value of bin +-1 (below 2T) may be coded as 0, and a
 #: dead-zone value above PROMOTE_ABOVE T as +-1. So a 0 may hide up to 2T, a +-1 down to that.

@@ -144,13 +144,13 @@ def forward(
         ``T`` > 0: the quantization step the Lagrangian optimises the basis for.
     wavelet : str
         ``"cdf97"`` (biorthogonal, default) or an orthogonal wavelet of
-        :data:`bandelets.wavelets.WAVELETS`.
+        :data:`bandelets.bitstream.WAVELETS`.
     levels : int, optional
         Wavelet levels (default :func:`bandelets.wavelets.max_levels`).
     transform : {"bandelet", "wavelet"}
         ``"wavelet"`` keeps every square NULL.
     transform_1d : {"alpert2", "haar"}
-        1D transform along the directions (:data:`bandelets.bandeletize.TRANSFORMS_1D`):
+        1D transform along the directions (:data:`bandelets.bitstream.TRANSFORMS_1D`):
         Alpert's multiwavelet with two vanishing moments (default) or the paper's Haar.
 
     Returns

@@ -31,23 +31,16 @@ from functools import cache
 import numpy as np
 import pywt
 
+from .bitstream import EXTENSIONS, MAX_LEVELS, WAVELETS
+
 __all__ = [
-    "EXTENSIONS",
-    "WAVELETS",
     "check_extension",
     "subband_slices",
     "wavedec",
     "waverec",
     "max_levels",
-    "MAX_LEVELS",
     "padded_shape",
 ]
-
-#: Boundary extensions of ``cdf97`` that can be stored in a .bdl header, by code. Append only.
-EXTENSIONS = ("symmetric", "spherical")
-
-#: Wavelets that can be stored in a .bdl header, by code. Append only: the code is the format.
-WAVELETS = ("cdf97", "haar", "db2", "db4", "db6", "db8")
 
 # Lifting factorisation of the CDF 9/7 filter pair (Daubechies and Sweldens 1998).
 _ALPHA = -1.586134342059924
@@ -55,10 +48,6 @@ _BETA = -0.052980118572961
 _GAMMA = 0.882911075530934
 _DELTA = 0.443506852043971
 _ZETA = 1.230174104914001
-
-
-#: Most decomposition levels the format stores.
-MAX_LEVELS = 6
 
 
 def padded_shape(shape: tuple[int, int], levels: int) -> tuple[int, int]:

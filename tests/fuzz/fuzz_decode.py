@@ -46,8 +46,8 @@ import bandelets.quantize  # noqa: E402,F401
 with atheris.instrument_imports(include=["bandelets"]):
     import bandelets
     import bandelets.encoder  # imported lazily by the package: import it here to instrument it
-    from bandelets.bitstream import FormatError
-    from bandelets.wavelets import MAX_LEVELS, WAVELETS, _subband_norms
+    from bandelets.bitstream import MAX_LEVELS, WAVELETS, FormatError
+    from bandelets.wavelets import _subband_norms
 
 LIMITS = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20}
 MAX_SECONDS = 2.0
