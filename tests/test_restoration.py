@@ -10,7 +10,7 @@ import pytest
 import bandelets
 from bandelets import decoder, encoder, metrics, restoration
 from bandelets.bitstream import pack, unpack
-from bandelets.quantize import dequantize, quantize
+from bandelets.quantize import bin_bounds, dequantize, quantize
 from bandelets.wavelets import wavedec, waverec
 
 
@@ -24,7 +24,7 @@ def test_bins_hold_the_values_they_came_from(rng):
     promote = (q == 0) & (np.abs(x) > 0.7 * t)
     moved[promote] = np.sign(x[promote]).astype(moved.dtype)
     for bins in (q, moved):
-        low, high = restoration.bin_bounds(bins, t)
+        low, high = bin_bounds(bins, t)
         assert np.all((low <= x) & (x <= high))
         assert np.all(high - low <= 4 * t)
         # The plain reconstruction lies in its own bin.
@@ -101,7 +101,7 @@ def test_iterations_stay_consistent_with_the_bins(edge_image):
         return waverec(c[0], "db4", 3)[None]
 
     q = quantize(analysis(edge_image[None])[0], t)
-    low, high = restoration.bin_bounds(q, t)
+    low, high = bin_bounds(q, t)
     steps = restoration.iterate([q], t, analysis, synthesis)
     first = next(steps)[0].copy()
     np.testing.assert_allclose(first, synthesis(dequantize(q, t)[None])[0])
@@ -179,7 +179,7 @@ def test_files_with_local_frames_are_restored_in_their_frames():
         x = next(steps)
     c = analysis(x)
     for k, q in enumerate(quantized):
-        low, high = restoration.bin_bounds(q, header.threshold)
+        low, high = bin_bounds(q, header.threshold)
         assert np.all((c[k] >= low - 1e-9) & (c[k] <= high + 1e-9))
 
 

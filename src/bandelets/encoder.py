@@ -29,7 +29,7 @@ from .lagrangian import LAMBDA
 from .layout import approximation_plan
 from .memory import check_memory
 from .options import check_image, check_options, geometry_options
-from .quantize import PROMOTE_ABOVE, RECONSTRUCTION, dequantize, quantize
+from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, wavelet_coefficients
 from .wavelets import max_levels, subband_slices
 
@@ -75,7 +75,7 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
         approximation = approximation_plan(bandelets[0].shape, header.levels).order
         for b, q, bits in zip(bandelets, quantized, spent, strict=True):
             bits[approximation] = 0.0  # coded as a prediction residual: left alone
-            _optimise_bins(b, q, bits.reshape(q.shape), threshold)
+            optimise_bins(b, q, bits.reshape(q.shape), threshold, LAMBDA)
     # The weighted normal component's error is the weight times the error it makes.
     scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
     sse = sum(
@@ -86,49 +86,6 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized])
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized)
-
-
-#: Lagrange multiplier of the quantization decisions, in T**2 per bit (the search's LAMBDA).
-RDOQ_LAMBDA = LAMBDA
-#: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
-_SIGN_AND_MAGNITUDE_BITS = 1.5
-
-
-def _optimise_bins(values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshold: float) -> None:
-    """Rate-distortion optimised quantization between 0 and +-1, in place.
-
-    ``Q_T`` decides on magnitude alone; here a coefficient of bin 1 becomes 0, or a value of
-    the dead zone above ``PROMOTE_ABOVE T`` becomes +-1, when that lowers
-    ``error + RDOQ_LAMBDA T**2 bits``. The bits come from a first coding pass: a coefficient's
-    ideal code length prices its own choice, and the probability of significance its context
-    had (``2**-bits`` for a zero, about ``2**(1.5 - bits)`` for a +-1) prices the other one.
-
-    Parameters
-    ----------
-    values : ndarray of float, shape (H, W)
-        The coefficients quantized.
-    q : ndarray of int32, shape (H, W)
-        Their bin indices; modified.
-    bits : ndarray of float, shape (H, W)
-        Ideal code length of each coefficient in the first pass; 0 where not to be touched.
-    threshold : float
-    """
-    price = RDOQ_LAMBDA * threshold * threshold
-    a = np.abs(values)
-    # Error removed by coding +-1 instead of 0.
-    gain = a * a - (a - (1.0 + RECONSTRUCTION) * threshold) ** 2
-    ones = (np.abs(q) == 1) & (bits > 0)
-    significant = np.clip(2.0 ** (_SIGN_AND_MAGNITUDE_BITS - bits[ones]), 0.0, 0.5)
-    saved = bits[ones] + np.log2(1.0 - significant)
-    drop = np.zeros(q.shape, bool)
-    drop[ones] = gain[ones] < price * saved
-    zeros = (q == 0) & (bits > 0) & (a > PROMOTE_ABOVE * threshold)
-    significant = np.clip(1.0 - 2.0 ** -bits[zeros], 1e-6, 1.0)
-    extra = _SIGN_AND_MAGNITUDE_BITS - np.log2(significant) - bits[zeros]
-    promote = np.zeros(q.shape, bool)
-    promote[zeros] = gain[zeros] > price * extra
-    q[drop] = 0
-    q[promote] = np.sign(values[promote]).astype(q.dtype)
 
 
 def _local_frames(coefficients: list[np.ndarray], header: Header):

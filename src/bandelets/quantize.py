@@ -1,11 +1,18 @@
-"""The paper's nearly uniform quantizer Q_T (section 4, step (8)).
+"""The paper's nearly uniform quantizer Q_T (section 4, step (8)), and its contract.
 
 ``Q_T(x) = 0`` if ``|x| <= T``, else ``sign(x) (q + 1/2) T`` for ``q T <= |x| < (q + 1) T``:
 a dead zone of width ``2T`` and bins of width ``T`` reconstructed at their middle. Here the
-reconstruction point is :data:`RECONSTRUCTION` (a little below the middle), and the encoder
-may move a value between 0 and +-1 (rate-distortion optimised quantization, in
-:mod:`bandelets.encoder`). The integer that is entropy-coded is the signed bin index
-``sign(x) q`` (0 in the dead zone).
+reconstruction point is :data:`RECONSTRUCTION` (a little below the middle). The integer that
+is entropy-coded is the signed bin index ``sign(x) q`` (0 in the dead zone).
+
+The contract between the encoder and the decoder, in this one module:
+
+* :func:`quantize` gives the bins, :func:`dequantize` the values the decoder reconstructs;
+* the encoder may then move a value between 0 and +-1 (rate-distortion optimised
+  quantization, :func:`optimise_bins`): a value of bin +-1 may be coded as 0, a dead-zone value
+  above :data:`PROMOTE_ABOVE` T as +-1;
+* so a decoder may assume no more than :func:`bin_bounds`: the interval each bin's value came
+  from (the restoration, :mod:`bandelets.restoration`, keeps every coefficient inside it).
 """
 
 from __future__ import annotations
@@ -13,7 +20,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["PROMOTE_ABOVE", "quantize", "dequantize", "bin_index", "quantization_error", "bin_and_error"]
+__all__ = [
+    "PROMOTE_ABOVE",
+    "RECONSTRUCTION",
+    "ZERO_UP_TO",
+    "quantize",
+    "dequantize",
+    "optimise_bins",
+    "bin_bounds",
+    "bin_index",
+    "quantization_error",
+    "bin_and_error",
+]
 
 #: Largest bin index the bitstream accepts: keeps every integer well inside int32.
 MAX_INDEX = 2**30
@@ -26,6 +44,8 @@ MAX_INDEX = 2**30
 RECONSTRUCTION = 0.44
 #: Dead-zone values above this many T may be coded as +-1 by the encoder (the dead zone is T).
 PROMOTE_ABOVE = 0.7
+#: A value of bin +-1 (below 2T) may be coded as 0 by the encoder: a 0 may hide up to this many T.
+ZERO_UP_TO = 2.0
 
 
 def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
@@ -98,3 +118,73 @@ def bin_index(x: float, threshold: float) -> int:
 def quantization_error(x: float, threshold: float) -> float:
     """Squared error ``(x - Q_T(x))**2`` of one value."""
     return bin_and_error(x, threshold)[1]
+
+
+#: Bits a significant coefficient spends besides its significance (sign, first magnitude flag).
+_SIGN_AND_MAGNITUDE_BITS = 1.5
+
+
+def optimise_bins(
+    values: np.ndarray, q: np.ndarray, bits: np.ndarray, threshold: float, lagrangian: float
+) -> None:
+    """Rate-distortion optimised quantization between 0 and +-1, in place.
+
+    ``Q_T`` decides on magnitude alone; here a coefficient of bin 1 becomes 0, or a value of
+    the dead zone above ``PROMOTE_ABOVE T`` becomes +-1, when that lowers
+    ``error + lagrangian T**2 bits``. The bits come from a first coding pass: a coefficient's
+    ideal code length prices its own choice, and the probability of significance its context
+    had (``2**-bits`` for a zero, about ``2**(1.5 - bits)`` for a +-1) prices the other one.
+
+    Parameters
+    ----------
+    values : ndarray of float, shape (H, W)
+        The coefficients quantized.
+    q : ndarray of int32, shape (H, W)
+        Their bin indices; modified.
+    bits : ndarray of float, shape (H, W)
+        Ideal code length of each coefficient in the first pass; 0 where not to be touched.
+    threshold : float
+    lagrangian : float
+        Lagrange multiplier, in ``T**2`` per bit (the encoder passes the basis search's,
+        :data:`bandelets.lagrangian.LAMBDA`).
+    """
+    price = lagrangian * threshold * threshold
+    a = np.abs(values)
+    # Error removed by coding +-1 instead of 0.
+    gain = a * a - (a - (1.0 + RECONSTRUCTION) * threshold) ** 2
+    ones = (np.abs(q) == 1) & (bits > 0)
+    significant = np.clip(2.0 ** (_SIGN_AND_MAGNITUDE_BITS - bits[ones]), 0.0, 0.5)
+    saved = bits[ones] + np.log2(1.0 - significant)
+    drop = np.zeros(q.shape, bool)
+    drop[ones] = gain[ones] < price * saved
+    zeros = (q == 0) & (bits > 0) & (a > PROMOTE_ABOVE * threshold)
+    significant = np.clip(1.0 - 2.0 ** -bits[zeros], 1e-6, 1.0)
+    extra = _SIGN_AND_MAGNITUDE_BITS - np.log2(significant) - bits[zeros]
+    promote = np.zeros(q.shape, bool)
+    promote[zeros] = gain[zeros] > price * extra
+    q[drop] = 0
+    q[promote] = np.sign(values[promote]).astype(q.dtype)
+
+
+def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Interval each coefficient of bin index ``q`` may have come from.
+
+    Parameters
+    ----------
+    q : ndarray of int
+        Signed bin indices (:func:`bandelets.quantize.quantize`, after the encoder's choices
+        between 0 and +-1).
+    threshold : float
+        ``T``.
+
+    Returns
+    -------
+    low, high : ndarray of float64, shape of ``q``
+        ``[-2T, 2T]`` for 0, ``[PROMOTE_ABOVE T, 2T]`` for 1, ``[|q| T, (|q| + 1) T]`` above, with the
+        sign of ``q``.
+    """
+    a = np.abs(q).astype(np.float64)
+    low = np.where(a == 0, -ZERO_UP_TO, np.where(a == 1, PROMOTE_ABOVE, a)) * threshold
+    high = np.where(a <= 1, ZERO_UP_TO, a + 1.0) * threshold
+    negative = q < 0
+    return np.where(negative, -high, low), np.where(negative, -low, high)

@@ -44,7 +44,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from numba import njit
 
-from .quantize import PROMOTE_ABOVE, dequantize
+from .quantize import bin_bounds, dequantize
 
 __all__ = [
     "STEP",
@@ -52,7 +52,6 @@ __all__ = [
     "EDGE",
     "SECOND_ORDER",
     "SECOND_EDGE",
-    "bin_bounds",
     "penalty_gradient",
     "iterate",
 ]
@@ -71,36 +70,8 @@ SECOND_ORDER = 0.25
 #: Second-difference magnitude, in units of ``T``, above which that penalty grows only
 #: logarithmically (the kink of a crease).
 SECOND_EDGE = 0.5
-#: What the encoder's rate-distortion optimised quantization may do to a value (see
-#: ``bandelets.encoder._optimise_bins``): a value of bin +-1 (below 2T) may be coded as 0, and a
-#: dead-zone value above PROMOTE_ABOVE T as +-1. So a 0 may hide up to 2T, a +-1 down to that.
-_ZERO_UP_TO = 2.0
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
-
-
-def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
-    """Interval each coefficient of bin index ``q`` may have come from.
-
-    Parameters
-    ----------
-    q : ndarray of int
-        Signed bin indices (:func:`bandelets.quantize.quantize`, after the encoder's choices
-        between 0 and +-1).
-    threshold : float
-        ``T``.
-
-    Returns
-    -------
-    low, high : ndarray of float64, shape of ``q``
-        ``[-2T, 2T]`` for 0, ``[PROMOTE_ABOVE T, 2T]`` for 1, ``[|q| T, (|q| + 1) T]`` above, with the
-        sign of ``q``.
-    """
-    a = np.abs(q).astype(np.float64)
-    low = np.where(a == 0, -_ZERO_UP_TO, np.where(a == 1, PROMOTE_ABOVE, a)) * threshold
-    high = np.where(a <= 1, _ZERO_UP_TO, a + 1.0) * threshold
-    negative = q < 0
-    return np.where(negative, -high, low), np.where(negative, -low, high)
 
 
 def penalty_gradient(
