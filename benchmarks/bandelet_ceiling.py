@@ -35,6 +35,7 @@ from bandelets.encoder import encode_with_stats
 from bandelets.geometry import directions
 from bandelets.layout import subband_plan
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.options import EncodeOptions
 from bandelets.quantize import quantize
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
@@ -82,7 +83,16 @@ def bits_per_significant(coefficients: list[np.ndarray], levels: int, threshold:
         inside[subband_plan(shape, levels, index, tree, "alpert2")[0].order] = True
     out = {}
     for transform in ("wavelet", "bandelet"):
-        header = Header(*shape, len(coefficients), "image", transform, "cdf97", levels, threshold)
+        header = Header(
+            height=shape[0],
+            width=shape[1],
+            channels=len(coefficients),
+            kind="image",
+            transform=transform,
+            wavelet="cdf97",
+            levels=levels,
+            threshold=threshold,
+        )
         values = coefficients
         if transform == "bandelet":
             values = [apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
@@ -136,7 +146,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{'surface':<26} {'T':>8} {'left L=8':>9} {'L=16':>6} {'real BD-PSNR':>13}")
     for name, surface, kind in surfaces(args.meshes):
-        wavelet = encode_with_stats(surface, bpp=1.0, kind=kind, transform="wavelet")
+        wavelet = encode_with_stats(surface, EncodeOptions(kind=kind, transform="wavelet"), bpp=1.0)
         coded = surface if surface.ndim == 3 else surface[..., None]
         if kind == "normal-map" and np.all(coded[..., 2] >= 0):
             coded = coded[..., :2]  # as the codec does

@@ -36,7 +36,18 @@ def collect(size: int, transform_1d: str, thresholds: list[float]):
     rows = {"wavelet": [], "bandelet": []}
     for t in thresholds:
         for transform in ("wavelet", "bandelet"):
-            header = Header(size, size, 2, "normal-map", transform, "cdf97", levels, t, 0, transform_1d)
+            header = Header(
+                height=size,
+                width=size,
+                channels=2,
+                kind="normal-map",
+                transform=transform,
+                wavelet="cdf97",
+                levels=levels,
+                threshold=t,
+                depth=0,
+                transform_1d=transform_1d,
+            )
             trees = best_trees(coefficients, levels, t, transform, transform_1d)
             bands = [apply_trees(c, levels, trees, bandeletize, transform_1d) for c in coefficients]
             _, _, spent = code_image(new_coders(), header, trees, [quantize(b, t).ravel() for b in bands])

@@ -10,6 +10,7 @@ import bandelets
 from bandelets import decoder, encoder, metrics
 from bandelets.bitstream import WAVELETS, unpack
 from bandelets.lagrangian import LAMBDA
+from bandelets.options import EncodeOptions
 from bandelets.wavelets import padded_shape, subband_slices
 
 
@@ -177,7 +178,7 @@ def test_coefficient_sse_is_the_decoded_squared_error():
     error of the coefficients (before the restoration, which only the decoded image sees)."""
     x = _image((64, 64), seed=8)
     t = 0.03
-    enc = encoder.encode_with_stats(x, threshold=t, wavelet="db4", restore=False)
+    enc = encoder.encode_with_stats(x, EncodeOptions(wavelet="db4", restore=False), threshold=t)
     assert enc.threshold == t
     y = bandelets.decode(enc.data)
     sse = float(np.sum((x - y) ** 2))
@@ -232,7 +233,7 @@ def test_auto_wavelet_keeps_the_better_file(crease_map):
     # At a fixed threshold: the smaller error + LAMBDA T**2 bits.
     t = 0.02
     stats = [
-        encoder.encode_with_stats(crease_map, threshold=t, wavelet=w, **options)
+        encoder.encode_with_stats(crease_map, EncodeOptions(wavelet=w, **options), threshold=t)
         for w in encoder.AUTO_CANDIDATES
     ]
     cost = [s.coefficient_sse + LAMBDA * t * t * 8 * len(s.data) for s in stats]

@@ -9,6 +9,7 @@ import bandelets
 from bandelets import frames, metrics
 from bandelets.bitstream import NORMAL_MAP_WEIGHT, unpack
 from bandelets.encoder import encode_with_stats
+from bandelets.options import EncodeOptions
 from bandelets.surfaces import octahedral
 from bandelets.wavelets import wavedec
 
@@ -120,15 +121,10 @@ def test_normal_maps_of_three_channels_are_coded_in_local_frames():
 @pytest.mark.parametrize("extension", ["symmetric", "spherical"])
 def test_geometry_image_with_local_frames_round_trips(transform, extension):
     image = _bumpy_sphere(32)
-    enc = encode_with_stats(
-        image,
-        threshold=2e-3,
-        kind="geometry-image",
-        transform=transform,
-        frames=True,
-        normal_weight=2.5,
-        extension=extension,
+    options = EncodeOptions(
+        kind="geometry-image", transform=transform, frames=True, normal_weight=2.5, extension=extension
     )
+    enc = encode_with_stats(image, options, threshold=2e-3)
     header, _ = unpack(enc.data)
     assert (header.frames, header.normal_weight, header.extension) == (True, 2.5, extension)
     decoded = bandelets.decode(enc.data)

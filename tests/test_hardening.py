@@ -119,7 +119,15 @@ def test_valid_header_with_absurd_sizes_and_tiny_streams(height, width, channels
     kind = "image" if channels != 3 else "normal-map"
     levels = 1
     header = Header(
-        height, width, channels, kind, "bandelet", "cdf97", levels, 0.1, **implied_options(kind, channels)
+        height=height,
+        width=width,
+        channels=channels,
+        kind=kind,
+        transform="bandelet",
+        wavelet="cdf97",
+        levels=levels,
+        threshold=0.1,
+        **implied_options(kind, channels),
     )
     data = pack(header, (b"\x00" * 20, b"\x00" * 20, b"\x00" * 20))
     start = time.perf_counter()
@@ -185,7 +193,16 @@ def test_encoder_memory_limit_is_overridable():
 
 def test_cli_refuses_a_hostile_file_in_one_line(tmp_path):
     path = tmp_path / "hostile.bdl"
-    header = Header(16384, 16384, 1, "image", "bandelet", "cdf97", 6, 0.1)
+    header = Header(
+        height=16384,
+        width=16384,
+        channels=1,
+        kind="image",
+        transform="bandelet",
+        wavelet="cdf97",
+        levels=6,
+        threshold=0.1,
+    )
     path.write_bytes(pack(header, (b"\x00" * 20, b"\x00" * 20, b"\x00" * 20)))
     done = subprocess.run(
         [sys.executable, "-m", "bandelets", "decode", str(path), str(tmp_path / "out.npy")],

@@ -188,16 +188,16 @@ def _model_and_actual_bits(image, kind, transform_1d, thresholds):
     model = actual = 0.0
     for t in thresholds:
         header = Header(
-            image.shape[0],
-            image.shape[1],
-            image.shape[2],
-            kind,
-            "wavelet",
-            "cdf97",
-            levels,
-            t,
-            0,
-            transform_1d,
+            height=image.shape[0],
+            width=image.shape[1],
+            channels=image.shape[2],
+            kind=kind,
+            transform="wavelet",
+            wavelet="cdf97",
+            levels=levels,
+            threshold=t,
+            depth=0,
+            transform_1d=transform_1d,
         )
         trees = best_trees(coefficients, levels, t, "wavelet", transform_1d)
         bands = [apply_trees(c, levels, trees, bandeletize, transform_1d) for c in coefficients]
@@ -230,7 +230,18 @@ def test_coder_ledger_matches_the_file_size(crease_map):
     t = 0.01
     levels = max_levels(crease_map.shape[:2])
     coefficients = wavelet_coefficients(crease_map, "cdf97", levels)
-    header = Header(64, 64, 3, "normal-map", "bandelet", "cdf97", levels, t, 0, "alpert2")
+    header = Header(
+        height=64,
+        width=64,
+        channels=3,
+        kind="normal-map",
+        transform="bandelet",
+        wavelet="cdf97",
+        levels=levels,
+        threshold=t,
+        depth=0,
+        transform_1d="alpert2",
+    )
     trees = best_trees(coefficients, levels, t, "bandelet", "alpert2")
     bands = [apply_trees(c, levels, trees, bandeletize, "alpert2") for c in coefficients]
     quantized = [quantize(b, t).ravel() for b in bands]

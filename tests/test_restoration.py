@@ -10,6 +10,7 @@ import pytest
 import bandelets
 from bandelets import decoder, encoder, metrics, restoration
 from bandelets.bitstream import pack, unpack
+from bandelets.options import EncodeOptions
 from bandelets.quantize import bin_bounds, dequantize, quantize
 from bandelets.wavelets import wavedec, waverec
 
@@ -185,8 +186,8 @@ def test_files_with_local_frames_are_restored_in_their_frames():
 
 def test_psnr_target_counts_the_restoration(crease_map):
     """A quality target is met by the restored image, with a smaller file than without it."""
-    restored = encoder.encode_with_stats(crease_map, psnr=45.0, kind="normal-map")
-    plain = encoder.encode_with_stats(crease_map, psnr=45.0, kind="normal-map", restore=False)
+    restored = encoder.encode_with_stats(crease_map, EncodeOptions(kind="normal-map"), psnr=45.0)
+    plain = encoder.encode_with_stats(crease_map, EncodeOptions(kind="normal-map", restore=False), psnr=45.0)
     decoded = metrics.psnr(crease_map, bandelets.decode(restored.data), "normal-map")
     assert decoded >= 45.0
     assert restored.psnr == pytest.approx(decoded, abs=1e-9)  # what rate control trusted

@@ -22,6 +22,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
+from .bitstream import DEFAULT_TRANSFORM_1D
 from .geometry import directions, zigzag
 from .quantize import MAX_INDEX, RECONSTRUCTION
 
@@ -173,7 +174,7 @@ def _rows(x: np.ndarray, mats: np.ndarray, inverse: bool) -> np.ndarray:
     return out
 
 
-def transform_rows(x: np.ndarray, kind: str = "alpert2", inverse: bool = False) -> np.ndarray:
+def transform_rows(x: np.ndarray, kind: str = DEFAULT_TRANSFORM_1D, inverse: bool = False) -> np.ndarray:
     """:func:`multiwavelet_inplace` (or its inverse) of every row of ``x``, shape (m, n)."""
     k = ORDER[kind]
     return _rows(np.ascontiguousarray(x, dtype=np.float64), alpert_matrices(x.shape[1], k), inverse)
@@ -224,7 +225,7 @@ def _transform(subband: np.ndarray, tree, kind: str, inverse: bool) -> np.ndarra
     return out
 
 
-def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
+def bandeletize(subband: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D) -> np.ndarray:
     """Bandelet coefficients of one subband for a given quadtree and directions.
 
     Parameters
@@ -244,7 +245,7 @@ def bandeletize(subband: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
     return _transform(subband, tree, kind, inverse=False)
 
 
-def debandeletize(coefficients: np.ndarray, tree, kind: str = "alpert2") -> np.ndarray:
+def debandeletize(coefficients: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D) -> np.ndarray:
     """Inverse of :func:`bandeletize`: wavelet coefficients of the subband."""
     return _transform(coefficients, tree, kind, inverse=True)
 
@@ -271,7 +272,7 @@ def _bins(bins, width, top, left, dirs, orders, stored, mats, threshold):
             bins[top[s] + order[i] // width, left[s] + order[i] % width] = int(b)
 
 
-def debandeletize_bins(bins: np.ndarray, tree, threshold: float, kind: str = "alpert2") -> None:
+def debandeletize_bins(bins: np.ndarray, tree, threshold: float, kind: str = DEFAULT_TRANSFORM_1D) -> None:
     """Replace, in place, the bin indices of every bandelet square by those of the wavelet
     coefficients they decode to: ``fix(debandeletize(dequantize(bins)) / T)``, clipped to
     ``[-MAX_INDEX, MAX_INDEX]`` (NaN gives 0).

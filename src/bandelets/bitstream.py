@@ -71,6 +71,9 @@ __all__ = [
     "TRANSFORMS_1D",
     "EXTENSIONS",
     "Kind",
+    "DEFAULT_WAVELET",
+    "DEFAULT_TRANSFORM_1D",
+    "DEFAULT_NORMAL_WEIGHT",
     "MAX_LEVELS",
     "MAX_RESTORATION",
     "NORMAL_MAP_WEIGHT",
@@ -108,6 +111,12 @@ _KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF = (
     for codes in (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
 )
 
+#: The encoder's defaults (:class:`bandelets.options.EncodeOptions`): the wavelet, the 1D transform,
+#: and the weight of the normal component of a geometry image in local frames.
+DEFAULT_WAVELET = "cdf97"
+DEFAULT_TRANSFORM_1D = "alpert2"
+DEFAULT_NORMAL_WEIGHT = 2.0
+
 #: Most wavelet decomposition levels a file may have.
 MAX_LEVELS = 6
 #: Most restoration iterations a file may ask for (one byte; :mod:`bandelets.restoration`).
@@ -137,20 +146,20 @@ class FormatError(ValueError):
     """A .bdl file is corrupt, truncated, hostile or of an unsupported version."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Header:
-    """Everything a .bdl file says before its streams."""
+    """Everything a .bdl file says before its streams (built by keywords)."""
 
     height: int
     width: int
     channels: int
-    kind: str
+    kind: Kind
     transform: str
     wavelet: str
     levels: int
     threshold: float
     depth: int = 0
-    transform_1d: str = "alpert2"
+    transform_1d: str = DEFAULT_TRANSFORM_1D
     # Geometry images (the defaults for any other kind, except frames with NORMAL_MAP_WEIGHT for a
     # normal map of three channels):
     extension: str = "symmetric"
@@ -276,16 +285,16 @@ def unpack(
     else:
         options = implied_options(kind, channels)
     header = Header(
-        height,
-        width,
-        channels,
-        kind,
-        transform,
-        wavelet,
-        levels,
-        threshold,
-        depth,
-        along,
+        height=height,
+        width=width,
+        channels=channels,
+        kind=kind,
+        transform=transform,
+        wavelet=wavelet,
+        levels=levels,
+        threshold=threshold,
+        depth=depth,
+        transform_1d=along,
         **options,
         restoration=restoration,
     )

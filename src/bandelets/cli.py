@@ -17,7 +17,16 @@ import sys
 import warnings
 from pathlib import Path
 
-from .bitstream import EXTENSIONS, KINDS, TRANSFORMS, TRANSFORMS_1D, WAVELETS
+from .bitstream import (
+    DEFAULT_NORMAL_WEIGHT,
+    DEFAULT_TRANSFORM_1D,
+    DEFAULT_WAVELET,
+    EXTENSIONS,
+    KINDS,
+    TRANSFORMS,
+    TRANSFORMS_1D,
+    WAVELETS,
+)
 
 __all__ = ["main"]
 
@@ -56,15 +65,16 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--wavelet",
-        default="cdf97",
-        help=f"{', '.join(WAVELETS)} (default cdf97), or auto (the better of cdf97 and haar, "
+        default=DEFAULT_WAVELET,
+        help=f"{', '.join(WAVELETS)} (default {DEFAULT_WAVELET}), or auto (the better of cdf97 and haar, "
         "in twice the time)",
     )
     p.add_argument(
         "--transform-1d",
         choices=TRANSFORMS_1D,
-        default="alpert2",
-        help="1D transform along the directions: alpert2 (default, two vanishing moments) or haar",
+        default=DEFAULT_TRANSFORM_1D,
+        help=f"1D transform along the directions (default {DEFAULT_TRANSFORM_1D}: alpert2 has two vanishing "
+        "moments, haar one)",
     )
     p.add_argument(
         "--no-restore",
@@ -143,9 +153,10 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--normal-weight",
         type=float,
-        default=2.0,
+        default=DEFAULT_NORMAL_WEIGHT,
         metavar="W",
-        help="precision of the normal component over the tangential ones in local frames (default 2)",
+        help="precision of the normal component over the tangential ones in local frames "
+        f"(default {DEFAULT_NORMAL_WEIGHT:g})",
     )
     p.add_argument(
         "--extension",

@@ -13,12 +13,15 @@ import numpy as np
 from . import frames, metrics, ratecontrol
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
+    DEFAULT_NORMAL_WEIGHT,
+    DEFAULT_TRANSFORM_1D,
+    DEFAULT_WAVELET,
     HEADER_BYTES,
     MAX_MEMORY,
     MAX_RESTORATION,
-    WAVELETS,
     FormatError,
     Header,
+    Kind,
     implied_options,
     pack,
     unpack,
@@ -28,12 +31,12 @@ from .decoder import decode, decoded_image, restorations
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
 from .memory import check_memory
-from .options import check_image, check_options, geometry_options
+from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
 from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, wavelet_coefficients
 from .wavelets import max_levels, subband_slices
 
-__all__ = ["AUTO_WAVELET", "AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
+__all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
 
 
 @dataclass(frozen=True)
@@ -133,12 +136,12 @@ def encode(
     threshold: float | None = None,
     psnr: float | None = None,
     transform: str = "bandelet",
-    kind: str = "image",
-    wavelet: str = "cdf97",
-    transform_1d: str = "alpert2",
+    kind: Kind = "image",
+    wavelet: str = DEFAULT_WAVELET,
+    transform_1d: str = DEFAULT_TRANSFORM_1D,
     depth: int = 0,
     frames: bool = False,
-    normal_weight: float = 2.0,
+    normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     extension: str = "symmetric",
     restore: bool = True,
     progress: bool = False,
@@ -193,11 +196,7 @@ def encode(
     -------
     bytes
     """
-    return encode_with_stats(
-        array,
-        bpp=bpp,
-        threshold=threshold,
-        psnr=psnr,
+    options = EncodeOptions(
         transform=transform,
         kind=kind,
         wavelet=wavelet,
@@ -209,81 +208,54 @@ def encode(
         restore=restore,
         progress=progress,
         max_memory=max_memory,
-    ).data
+    )
+    return encode_with_stats(array, options, bpp=bpp, threshold=threshold, psnr=psnr).data
 
 
 def encode_with_stats(
     array,
+    options: EncodeOptions,
     *,
-    bpp=None,
-    threshold=None,
-    psnr=None,
-    transform="bandelet",
-    kind="image",
-    wavelet="cdf97",
-    transform_1d="alpert2",
-    depth=0,
-    frames=False,
-    normal_weight=2.0,
-    extension="symmetric",
-    restore=True,
-    progress=False,
-    max_memory=MAX_MEMORY,
+    bpp: float | None = None,
+    threshold: float | None = None,
+    psnr: float | None = None,
 ) -> Encoded:
-    """:func:`encode`, returning also the threshold used, the predicted error and (when the
-    encoder chose the restoration) the PSNR of the decoded file."""
-    if wavelet == AUTO_WAVELET:
-        return _best_of_wavelets(
-            array,
-            bpp=bpp,
-            threshold=threshold,
-            psnr=psnr,
-            transform=transform,
-            kind=kind,
-            transform_1d=transform_1d,
-            depth=depth,
-            frames=frames,
-            normal_weight=normal_weight,
-            extension=extension,
-            restore=restore,
-            progress=progress,
-            max_memory=max_memory,
-        )
+    """:func:`encode` with its options already validated, returning also the threshold used, the
+    predicted error and (when the encoder chose the restoration) the PSNR of the decoded file."""
+    if options.wavelet == AUTO_WAVELET:
+        return _best_of_wavelets(array, options, bpp=bpp, threshold=threshold, psnr=psnr)
+    kind, max_memory = options.kind, options.max_memory
     x = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
     targets = [v for v in (bpp, threshold, psnr) if v is not None]
     if len(targets) != 1:
         raise ValueError("give exactly one of bpp, threshold or psnr")
-    if depth not in (0, 8, 16):
-        raise ValueError(f"depth must be 0, 8 or 16, got {depth}")
-    if wavelet not in WAVELETS:
-        choices = ", ".join((*WAVELETS, AUTO_WAVELET))
-        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {choices}")
-    check_options(1.0 if threshold is None else threshold, transform, wavelet, transform_1d)
+    if threshold is not None:
+        check_threshold(threshold)
     levels = max_levels(x.shape[:2])
-    geometry = geometry_options(kind, x.shape[:2], wavelet, frames, normal_weight, extension)
-    if extension == "spherical":  # no padding: the fold must stay on the image's border
+    geometry = geometry_options(options, x.shape[:2])
+    if options.extension == "spherical":  # no padding: the fold must stay on the image's border
         while levels > 1 and x.shape[0] % (1 << levels):
             levels -= 1
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
     if kind == "normal-map":  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
-    coefficients = wavelet_coefficients(coded, wavelet, levels, extension)
+    coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
 
     def encode_at(t: float) -> Encoded:
         header = Header(
-            x.shape[0],
-            x.shape[1],
-            coded.shape[2],
-            kind,
-            transform,
-            wavelet,
-            levels,
-            t,
-            depth,
-            transform_1d,
+            height=x.shape[0],
+            width=x.shape[1],
+            channels=coded.shape[2],
+            kind=kind,
+            transform=options.transform,
+            wavelet=options.wavelet,
+            levels=levels,
+            threshold=t,
+            depth=options.depth,
+            transform_1d=options.transform_1d,
             **geometry,
         )
         return encode_at_threshold(coefficients, header)
@@ -293,7 +265,7 @@ def encode_with_stats(
     reference = x[..., 0] if x.shape[2] == 1 else x
 
     def finished(encoded: Encoded) -> Encoded:
-        return _with_restoration(encoded, reference, max_memory) if restore else encoded
+        return _with_restoration(encoded, reference, max_memory) if options.restore else encoded
 
     if threshold is not None:
         return finished(encode_at(float(threshold)))
@@ -307,7 +279,7 @@ def encode_with_stats(
                 f"{HEADER_BYTES} bytes of header"
             )
         model = ratecontrol.size_model(magnitudes)
-        return finished(ratecontrol.for_size(encode_at, target, t_max, model, progress))
+        return finished(ratecontrol.for_size(encode_at, target, t_max, model, options.progress))
     if not np.isfinite(psnr):
         raise ValueError(f"psnr must be a finite number, got {psnr}")
     # Start where a uniform quantizer's error would meet the target.
@@ -322,7 +294,7 @@ def encode_with_stats(
 
     # Each try is restored: the target is met by the restored image, with the smallest file.
     return ratecontrol.for_quality(
-        lambda t: finished(encode_at(t)), quality, float(psnr), t_max, t_guess, progress
+        lambda t: finished(encode_at(t)), quality, float(psnr), t_max, t_guess, options.progress
     )
 
 
@@ -352,40 +324,29 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
     return replace(encoded, data=pack(replace(header, restoration=best), streams), psnr=best_psnr)
 
 
-#: The ``wavelet`` that lets the encoder choose, per image and target, among
-#: :data:`AUTO_CANDIDATES`.
-AUTO_WAVELET = "auto"
 #: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD
 #: normal map) once the rate is high enough to code the creases exactly.
 AUTO_CANDIDATES = ("cdf97", "haar")
 
 
-def _best_of_wavelets(array, *, bpp, threshold, psnr, kind, max_memory, **options) -> Encoded:
+def _best_of_wavelets(array, options: EncodeOptions, *, bpp, threshold, psnr) -> Encoded:
     """Encode with each wavelet of :data:`AUTO_CANDIDATES` and keep the best file.
 
     For a rate target, the one whose decoded image has the higher PSNR; for a quality target
     the smaller file; at a fixed threshold the smaller ``error + LAMBDA T**2 bits``.
     """
     # The spherical extension exists for CDF 9/7 only.
-    candidates = AUTO_CANDIDATES if options.get("extension", "symmetric") == "symmetric" else ("cdf97",)
+    candidates = AUTO_CANDIDATES if options.extension == "symmetric" else ("cdf97",)
     files = [
-        encode_with_stats(
-            array,
-            bpp=bpp,
-            threshold=threshold,
-            psnr=psnr,
-            kind=kind,
-            wavelet=w,
-            max_memory=max_memory,
-            **options,
-        )
+        encode_with_stats(array, replace(options, wavelet=w), bpp=bpp, threshold=threshold, psnr=psnr)
         for w in candidates
     ]
     if psnr is not None:
         return min(files, key=lambda f: len(f.data))
     if threshold is not None:
         return min(files, key=lambda f: f.coefficient_sse + LAMBDA * f.threshold**2 * 8 * len(f.data))
-    x = check_image(array, kind, max_memory)
+    kind = options.kind
+    x = check_image(array, kind, options.max_memory)
     reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
-    limits = dict(max_memory=max_memory, max_side=2**32, max_samples=2**64)
+    limits = dict(max_memory=options.max_memory, max_side=2**32, max_samples=2**64)
     return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))

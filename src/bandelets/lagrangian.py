@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit, prange
 
 from .bandeletize import ORDER, alpert_matrices, multiwavelet_inplace
+from .bitstream import DEFAULT_TRANSFORM_1D
 from .geometry import directions
 from .quadtree import MAX_WIDTH
 from .quantize import bin_and_error
@@ -256,7 +257,7 @@ def best_directions(
     threshold: float,
     *,
     allow_directions: bool = True,
-    transform_1d: str = "alpert2",
+    transform_1d: str = DEFAULT_TRANSFORM_1D,
     predicted: np.ndarray | None = None,
     hints: np.ndarray | None = None,
     model: np.ndarray = RATE_MODEL,

@@ -1,10 +1,20 @@
-"""Validation at the door: the checks every input and option passes before any work on it."""
+"""Validation at the door: the options of the encoder, and the checks every input passes before any
+work on it.
+
+:class:`EncodeOptions` is built once from the keywords of :func:`bandelets.encode` (or of
+:func:`bandelets.surfaces.codec.encode_mesh`), validated on construction, and passed down.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from .bitstream import (
+    DEFAULT_NORMAL_WEIGHT,
+    DEFAULT_TRANSFORM_1D,
+    DEFAULT_WAVELET,
     KINDS,
     MAX_MEMORY,
     MAX_NORMAL_WEIGHT,
@@ -12,11 +22,68 @@ from .bitstream import (
     TRANSFORMS,
     TRANSFORMS_1D,
     WAVELETS,
+    Kind,
 )
 from .memory import encoder_memory
 from .wavelets import check_extension
 
-__all__ = ["check_image", "check_options", "check_geometry_options", "geometry_options"]
+__all__ = [
+    "AUTO_WAVELET",
+    "EncodeOptions",
+    "check_image",
+    "check_options",
+    "check_threshold",
+    "geometry_options",
+]
+
+#: The ``wavelet`` that lets the encoder choose, per image and target, among
+#: :data:`bandelets.encoder.AUTO_CANDIDATES`.
+AUTO_WAVELET = "auto"
+
+
+@dataclass(frozen=True, kw_only=True)
+class EncodeOptions:
+    """How to encode an image: every choice of :func:`bandelets.encode` but the target.
+
+    The attributes are the keywords of :func:`bandelets.encode`, with the same defaults.
+    ``ValueError`` on construction if any is unusable (whatever the image).
+
+    Examples
+    --------
+    >>> EncodeOptions(kind="normal-map").wavelet
+    'cdf97'
+    >>> EncodeOptions(wavelet="db3")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown wavelet 'db3'; choose one of cdf97, haar, db2, db4, db6, db8, auto
+    """
+
+    transform: str = "bandelet"
+    kind: Kind = "image"
+    wavelet: str = DEFAULT_WAVELET
+    transform_1d: str = DEFAULT_TRANSFORM_1D
+    depth: int = 0
+    frames: bool = False
+    normal_weight: float = DEFAULT_NORMAL_WEIGHT
+    extension: str = "symmetric"
+    restore: bool = True
+    progress: bool = False
+    max_memory: int = MAX_MEMORY
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
+        if self.depth not in (0, 8, 16):
+            raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
+        check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))
+        if self.kind != "geometry-image":
+            if self.frames or self.extension != "symmetric":
+                raise ValueError("local frames and the spherical extension apply to geometry images only")
+            return
+        weight = self.normal_weight
+        if not (np.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT):
+            raise ValueError(f"normal_weight must be from 1/64 to 64, got {weight}")
+        check_extension((2, 2), "cdf97", 1, self.extension)
 
 
 def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
@@ -51,33 +118,28 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
     return x
 
 
-def check_options(threshold: float, transform: str, wavelet: str, transform_1d: str) -> None:
-    """``ValueError`` unless the transform options are usable."""
-    if transform not in TRANSFORMS:
-        raise ValueError(f"unknown transform {transform!r}; choose one of {', '.join(TRANSFORMS)}")
-    if wavelet not in WAVELETS:
-        raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {', '.join(WAVELETS)}")
-    if transform_1d not in TRANSFORMS_1D:
-        raise ValueError(f"unknown 1D transform {transform_1d!r}; choose one of {', '.join(TRANSFORMS_1D)}")
+def check_options(transform: str, wavelet: str, transform_1d: str, wavelets: tuple = WAVELETS) -> None:
+    """``ValueError`` unless the transform options are usable (``wavelet`` one of ``wavelets``)."""
+    for what, value, choices in (
+        ("transform", transform, TRANSFORMS),
+        ("wavelet", wavelet, wavelets),
+        ("1D transform", transform_1d, TRANSFORMS_1D),
+    ):
+        if value not in choices:
+            raise ValueError(f"unknown {what} {value!r}; choose one of {', '.join(choices)}")
+
+
+def check_threshold(threshold: float) -> None:
+    """``ValueError`` unless ``threshold`` is a positive number."""
     if not (np.isfinite(threshold) and threshold > 0):
         raise ValueError(f"threshold must be a positive number, got {threshold}")
 
 
-def check_geometry_options(normal_weight: float, extension: str) -> None:
-    """``ValueError`` unless ``normal_weight`` and ``extension`` are usable for geometry images."""
-    if not (np.isfinite(normal_weight) and MIN_NORMAL_WEIGHT <= normal_weight <= MAX_NORMAL_WEIGHT):
-        raise ValueError(f"normal_weight must be from 1/64 to 64, got {normal_weight}")
-    check_extension((2, 2), "cdf97", 1, extension)
-
-
-def geometry_options(
-    kind: str, shape: tuple[int, int], wavelet: str, frames: bool, weight: float, extension: str
-) -> dict:
-    """The geometry-image fields of the header (``{}`` for other kinds); ``ValueError`` if unusable."""
-    if kind != "geometry-image":
-        if frames or extension != "symmetric":
-            raise ValueError("local frames and the spherical extension apply to geometry images only")
+def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:
+    """The geometry-image fields of the header (``{}`` for other kinds); ``ValueError`` if an
+    image of ``shape`` cannot have the options' extension."""
+    if options.kind != "geometry-image":
         return {}
-    check_geometry_options(weight, extension)
-    check_extension(shape, wavelet, 1, extension)  # the encoder then picks levels that fit
-    return {"extension": extension, "frames": bool(frames), "normal_weight": float(weight) if frames else 1.0}
+    check_extension(shape, options.wavelet, 1, options.extension)  # the encoder then picks levels that fit
+    weight = float(options.normal_weight) if options.frames else 1.0
+    return {"extension": options.extension, "frames": bool(options.frames), "normal_weight": weight}

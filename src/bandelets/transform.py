@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bandeletize import bandeletize, debandeletize
+from .bitstream import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET
 from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
-from .options import check_image, check_options
+from .options import check_image, check_options, check_threshold
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .treecoding import predicted_directions, reference_of
 from .wavelets import max_levels, padded_shape, subband_slices, wavedec, waverec
@@ -52,7 +53,7 @@ class Bandelets:
     wavelet: str
     levels: int
     threshold: float
-    transform_1d: str = "alpert2"
+    transform_1d: str = DEFAULT_TRANSFORM_1D
 
 
 def _pad(channel: np.ndarray, levels: int) -> np.ndarray:
@@ -129,10 +130,10 @@ def forward(
     channel: np.ndarray,
     threshold: float,
     *,
-    wavelet: str = "cdf97",
+    wavelet: str = DEFAULT_WAVELET,
     levels: int | None = None,
     transform: str = "bandelet",
-    transform_1d: str = "alpert2",
+    transform_1d: str = DEFAULT_TRANSFORM_1D,
 ) -> Bandelets:
     """Bandelet transform of one channel, with the basis chosen for threshold ``T``.
 
@@ -160,7 +161,8 @@ def forward(
     if np.ndim(channel) != 2:
         raise ValueError(f"forward takes one channel, an H x W array; got shape {np.shape(channel)}")
     x = check_image(channel, "image")[..., 0]
-    check_options(threshold, transform, wavelet, transform_1d)
+    check_options(transform, wavelet, transform_1d)
+    check_threshold(threshold)
     levels = levels or max_levels(x.shape)
     c = wavedec(_pad(x, levels), wavelet, levels)
     trees = best_trees([c], levels, threshold, transform, transform_1d)

@@ -31,7 +31,7 @@ from functools import cache
 import numpy as np
 import pywt
 
-from .bitstream import EXTENSIONS, MAX_LEVELS, WAVELETS
+from .bitstream import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
 
 __all__ = [
     "check_extension",
@@ -298,7 +298,7 @@ def _norm_map(shape: tuple[int, int], wavelet: str, levels: int) -> np.ndarray:
 
 
 def wavedec(
-    x: np.ndarray, wavelet: str = "cdf97", levels: int = 1, extension: str = "symmetric"
+    x: np.ndarray, wavelet: str = DEFAULT_WAVELET, levels: int = 1, extension: str = "symmetric"
 ) -> np.ndarray:
     """Normalised 2D wavelet transform of one channel.
 
@@ -328,7 +328,7 @@ def wavedec(
 
 
 def waverec(
-    c: np.ndarray, wavelet: str = "cdf97", levels: int = 1, extension: str = "symmetric"
+    c: np.ndarray, wavelet: str = DEFAULT_WAVELET, levels: int = 1, extension: str = "symmetric"
 ) -> np.ndarray:
     """Inverse of :func:`wavedec`: ``(H, W)`` coefficients to an ``(H, W)`` channel."""
     check_extension(c.shape, wavelet, levels, extension)

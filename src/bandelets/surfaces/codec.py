@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bitstream import DEFAULT_NORMAL_WEIGHT
 from . import checks, geometry_image, sphere
 
 __all__ = [
@@ -204,7 +205,7 @@ def encode_mesh(
     n_bytes: int | None = None,
     transform: str = "bandelet",
     frames: bool = True,
-    normal_weight: float = 2.0,
+    normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     extension: str = "spherical",
     restore: bool = False,
     image: np.ndarray | None = None,
@@ -241,8 +242,8 @@ def encode_mesh(
     -------
     bytes
     """
-    from ..encoder import encode
-    from ..options import check_geometry_options
+    from ..encoder import encode_with_stats
+    from ..options import EncodeOptions
 
     targets = {"bpp": bpp, "bits_per_vertex": bits_per_vertex, "n_bytes": n_bytes}
     given = [name for name, value in targets.items() if value is not None]
@@ -251,7 +252,14 @@ def encode_mesh(
     for name, value in targets.items():
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
-    check_geometry_options(normal_weight, extension)  # before the slow parameterization
+    options = EncodeOptions(  # validated before the slow parameterization
+        kind="geometry-image",
+        transform=transform,
+        frames=frames,
+        normal_weight=normal_weight,
+        extension=extension,
+        restore=restore,
+    )
     if image is not None:
         if size is not None and size != image.shape[0]:
             raise ValueError(f"size {size} given with a {image.shape[0]} x {image.shape[1]} geometry image")
@@ -267,16 +275,7 @@ def encode_mesh(
     check_size(size)
     if image is None:
         image = sample_geometry_image(spherical or map_to_sphere(mesh), size).positions
-    return encode(
-        image,
-        bpp=bits / (image.shape[0] * image.shape[1]),
-        transform=transform,
-        kind="geometry-image",
-        frames=frames,
-        normal_weight=normal_weight,
-        extension=extension,
-        restore=restore,
-    )
+    return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
 def decode_mesh(data: bytes):
