@@ -12,22 +12,33 @@ quantization, context-modelled arithmetic coding and a .bdl file.
 """
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
-__all__ = ["Bandelets", "FormatError", "decode", "encode", "forward", "inverse"]
 __version__ = "0.1.0"
 
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
 _HOME = {
-    "FormatError": "bitstream",
     "Bandelets": "transform",
+    "FormatError": "bitstream",
     "decode": "decoder",
     "encode": "encoder",
     "forward": "transform",
     "inverse": "transform",
 }
+__all__ = ["Bandelets", "FormatError", "decode", "encode", "forward", "inverse"]
+
+if TYPE_CHECKING:  # what the lazy loading below gives, for type checkers and IDEs
+    from .bitstream import FormatError
+    from .decoder import decode
+    from .encoder import encode
+    from .transform import Bandelets, forward, inverse
 
 
 def __getattr__(name: str):
     if name in _HOME:
         return getattr(import_module(f".{_HOME[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return [*__all__, "__version__"]

@@ -178,7 +178,20 @@ def implied_options(kind: str, channels: int) -> dict:
 
 
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
-    """Assemble a .bdl file from its header and its three coded streams."""
+    """Assemble a .bdl file from its header and its three coded streams.
+
+    Examples
+    --------
+    >>> header = Header(
+    ...     height=4, width=6, channels=1, kind="image", transform="bandelet", wavelet="cdf97", levels=1,
+    ...     threshold=0.5,
+    ... )
+    >>> data = pack(header, (b"", b"", b"ab"))
+    >>> len(data) == HEADER_BYTES + 2
+    True
+    >>> unpack(data) == (header, (b"", b"", b"ab"))
+    True
+    """
     body = _FIXED.pack(
         MAGIC,
         FORMAT_VERSION,

@@ -57,6 +57,15 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
     ------
     FormatError
         For any corrupt, truncated or unsupported file.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bandelets import encode
+    >>> image = np.linspace(0.0, 1.0, 32 * 48).reshape(32, 48)
+    >>> decoded = decode(encode(image, threshold=0.01))
+    >>> decoded.shape, bool(np.abs(decoded - image).max() < 0.05)
+    ((32, 48), True)
     """
     header, streams = unpack(bytes(data), **limits)
     return decode_parsed(header, streams, restore=restore, max_memory=max_memory)

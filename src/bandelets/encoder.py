@@ -195,6 +195,15 @@ def encode(
     Returns
     -------
     bytes
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y, x = np.mgrid[0:64, 0:64] / 64
+    >>> image = np.tanh(20 * (x - 0.7 * y - 0.2))  # a sharp oblique edge
+    >>> data = encode(image, bpp=1.0)
+    >>> 8 * len(data) <= image.size  # at most 1 bit per pixel, header included
+    True
     """
     options = EncodeOptions(
         transform=transform,

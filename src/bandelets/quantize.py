@@ -83,7 +83,16 @@ def _quantize(x, threshold, out):
 
 
 def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
-    """Reconstruction ``sign(q) (|q| + RECONSTRUCTION) T`` of signed bin indices (0 stays 0)."""
+    """Reconstruction ``sign(q) (|q| + RECONSTRUCTION) T`` of signed bin indices (0 stays 0).
+
+    Examples
+    --------
+    >>> q = quantize(np.array([0.5, 1.0, 1.5, -2.7]), 1.0)  # a dead zone of 2T, then bins of T
+    >>> q
+    array([ 0,  0,  1, -2], dtype=int32)
+    >>> dequantize(q, 1.0)
+    array([ 0.  ,  0.  ,  1.44, -2.44])
+    """
     q = np.asarray(q)
     out = np.empty(q.shape)
     _dequantize(q.ravel(), float(threshold), out.reshape(-1))

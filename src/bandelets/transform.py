@@ -157,6 +157,16 @@ def forward(
     Returns
     -------
     Bandelets
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[0:64, 0:64] / 64
+    >>> channel = np.tanh(20 * (x - 0.7 * y - 0.2))
+    >>> b = forward(channel, threshold=0.05)
+    >>> b.coefficients.shape, len(b.trees) == 3 * b.levels
+    ((64, 64), True)
+    >>> bool(np.allclose(inverse(b), channel))  # an orthonormal change of basis after the wavelets
+    True
     """
     if np.ndim(channel) != 2:
         raise ValueError(f"forward takes one channel, an H x W array; got shape {np.shape(channel)}")
@@ -178,7 +188,7 @@ def forward(
 
 
 def inverse(b: Bandelets) -> np.ndarray:
-    """Inverse bandelet transform: the channel, shape ``b.shape``."""
+    """Inverse bandelet transform: the channel, shape ``b.shape`` (see :func:`forward`)."""
     c = apply_trees(b.coefficients, b.levels, b.trees, debandeletize, b.transform_1d)
     return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
 
