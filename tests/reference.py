@@ -24,7 +24,7 @@ import numpy as np
 from bandelets import coding, decoder, encoder, lagrangian, quadtree, transform, treecoding
 from bandelets.bandeletize import ORDER, alpert_matrices
 from bandelets.geometry import directions, zigzag
-from bandelets.layout import Segment, _subband_box
+from bandelets.layout import Segment, subband_box
 from bandelets.quantize import MAX_INDEX, RECONSTRUCTION
 from bandelets.wavelets import subband_slices
 
@@ -305,8 +305,8 @@ def approximation_plan(shape, levels):
 def subband_plan(shape, levels, index, tree, transform_1d):
     k = ORDER[transform_1d]
     level, orientation, _ = subband_slices(shape, levels)[index]
-    box = _subband_box(shape, level, orientation)
-    parent = _subband_box(shape, level + 1, orientation) if level < levels else None
+    box = subband_box(shape, level, orientation)
+    parent = subband_box(shape, level + 1, orientation) if level < levels else None
     top, left, sizes, dirs = tree.leaves()
     in_square = np.zeros(box[2:], bool)
     rank = np.arange(top.shape[0])
@@ -373,6 +373,6 @@ def patched(monkeypatch):
             for module in (transform, coding, encoder, decoder):  # wherever the codec looks the name up
                 if hasattr(module, name):
                     m.setattr(module, name, value)
-        m.setattr(quadtree, "_morton", morton)
-        m.setattr(treecoding, "_cell_maps", cell_maps)
+        m.setattr(quadtree, "morton", morton)
+        m.setattr(treecoding, "cell_maps", cell_maps)
         yield

@@ -1,4 +1,4 @@
-"""The bandelet transform end to end, and .bdl encode / decode (bandelets.codec)."""
+"""The bandelet transform end to end, and .bdl encode / decode (bandelets.transform, .encoder, .decoder)."""
 
 from __future__ import annotations
 

@@ -138,6 +138,6 @@ def test_decoded_trees_cache_the_leaves_they_would_find():
     trees, _, _ = code_image(new_coders(streams), header)
     assert any(np.any(t.leaves()[3] >= 0) for t in trees)
     for tree in trees:
-        for cached, found in zip(tree.leaves(), tree._find_leaves(), strict=True):
+        for cached, found in zip(tree.leaves(), tree.find_leaves(), strict=True):
             np.testing.assert_array_equal(cached, found)
             assert cached.dtype == found.dtype

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .metrics import unit_vectors
+
 __all__ = [
     "ANCHORS",
     "EXTENSIONS",
@@ -187,8 +189,6 @@ def decode(
     vectors, as the bandelet decoder does.
     """
     import imagecodecs
-
-    from .metrics import unit_vectors
 
     decoders = {"jpeg2000": imagecodecs.jpeg2k_decode, "avif": imagecodecs.avif_decode}
     samples = decoders.get(codec, imagecodecs.jpegxl_decode)(data)

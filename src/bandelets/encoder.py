@@ -274,7 +274,8 @@ def encode_with_stats(
     reference = x[..., 0] if x.shape[2] == 1 else x
 
     def finished(encoded: Encoded) -> Encoded:
-        return _with_restoration(encoded, reference, max_memory) if options.restore else encoded
+        done = _with_restoration(encoded, reference, max_memory) if options.restore else encoded
+        return replace(done, trees=None, bins=None)  # only the restoration's choice needed them
 
     if threshold is not None:
         return finished(encode_at(float(threshold)))

@@ -38,7 +38,7 @@ from .geometry import zigzag
 from .quadtree import MAX_WIDTH, MIN_WIDTH, Quadtree
 from .wavelets import subband_slices
 
-__all__ = ["Segment", "approximation_plan", "subband_plan"]
+__all__ = ["Segment", "approximation_plan", "subband_box", "subband_plan"]
 
 
 _MAX_LEVELS = (MAX_WIDTH // MIN_WIDTH).bit_length()  # square sides 4 .. MAX_WIDTH
@@ -147,7 +147,9 @@ def _bandelet_part(in_square, top, left, sizes, box, width, tables):
     return order, classes, neighbours
 
 
-def _subband_box(shape, level, orientation):
+def subband_box(shape: tuple[int, int], level: int, orientation: int) -> tuple[int, int, int, int]:
+    """``top, left, height, width`` of the detail subband of ``level`` (1 = finest) and
+    ``orientation`` (0 H, 1 V, 2 D) in the Mallat layout of a padded ``shape``."""
     height, width = shape
     h, w = height >> level, width >> level
     return ((0, w), (h, 0), (h, w))[orientation] + (h, w)
@@ -180,8 +182,8 @@ def subband_plan(
     """
     k = ORDER[transform_1d]
     level, orientation, _ = subband_slices(shape, levels)[index]
-    box = _subband_box(shape, level, orientation)
-    parent = np.array(_subband_box(shape, level + 1, orientation)[:2] if level < levels else (), np.int64)
+    box = subband_box(shape, level, orientation)
+    parent = np.array(subband_box(shape, level + 1, orientation)[:2] if level < levels else (), np.int64)
     top, left, sizes, dirs = tree.leaves()
     bandelet = dirs >= 0
     in_square = np.zeros(box[2:], np.bool_)

@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["MIN_WIDTH", "MAX_WIDTH", "Quadtree", "root_width", "best_quadtree", "flat_quadtree"]
+__all__ = ["MIN_WIDTH", "MAX_WIDTH", "Quadtree", "root_width", "best_quadtree", "flat_quadtree", "morton"]
 
 #: Smallest square width, as in the paper.
 MIN_WIDTH = 4
@@ -89,16 +89,16 @@ class Quadtree:
 
     @cached_property
     def _leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        return self._find_leaves()
+        return self.find_leaves()
 
     def leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``rows, cols, widths, directions`` of every leaf, in coding order (see ``_find_leaves``).
+        """``rows, cols, widths, directions`` of every leaf, in coding order (see ``find_leaves``).
 
         Computed once per quadtree; the arrays are shared, do not modify them.
         """
         return self._leaves
 
-    def _find_leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def find_leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``rows, cols, widths, directions`` of every leaf, in coding order.
 
         Coding order is raster order of the root squares, then Z (Morton) order inside a
@@ -116,11 +116,12 @@ class Quadtree:
         rows, cols, widths, dirs = (np.concatenate(p) for p in zip(*parts, strict=True))
         roots_per_row = self.covered[1] // self.root
         root_index = (rows // self.root) * roots_per_row + cols // self.root
-        order = np.lexsort((_morton((rows % self.root) // 4, (cols % self.root) // 4), root_index))
+        order = np.lexsort((morton((rows % self.root) // 4, (cols % self.root) // 4), root_index))
         return rows[order], cols[order], widths[order], dirs[order].astype(np.int64)
 
 
-def _morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+def morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Morton (Z-order) code of every cell ``rows, cols``: the bits of the two interleaved."""
     code = np.zeros(rows.shape, np.int64)
     top = int(max(rows.max(initial=0), cols.max(initial=0)))
     for bit in range(top.bit_length()):

@@ -29,8 +29,11 @@ import numpy as np
 from tqdm import tqdm
 
 from . import anchors, samples
+from .decoder import decode
+from .encoder import encode
 from .files import read_array, write_atomic
 from .metrics import bd_psnr, bits_per_pixel, psnr
+from .options import check_image
 from .plots import rate_key, rd_figure
 
 __all__ = [
@@ -137,8 +140,6 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
             raise ValueError(f"{spec}: {err}") from None
         return MeshSource(Path(spec).stem, mesh, spherical, size, time.perf_counter() - start)
     if not spec.startswith("sample:"):
-        from .options import check_image
-
         array, depth = read_array(spec, kind)
         try:  # here, so that a bad input stops the run instead of skipping its every point
             check_image(array, kind)
@@ -158,8 +159,6 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
 def _encode(source: Source, codec: str, rate: float) -> bytes:
     if codec in anchors.ANCHORS:
         return anchors.encode(source.array, rate, codec, source.kind, source.depth)
-    from .encoder import encode
-
     # The encoder picks the better of CDF 9/7 and Haar for each point (encoder.AUTO_CANDIDATES).
     return encode(
         source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth, wavelet="auto"
@@ -169,8 +168,6 @@ def _encode(source: Source, codec: str, rate: float) -> bytes:
 def _decode(source: Source, codec: str, data: bytes) -> np.ndarray:
     if codec in anchors.ANCHORS:
         return anchors.decode(data, codec, source.array, source.kind, source.depth)
-    from .decoder import decode
-
     return decode(data)
 
 

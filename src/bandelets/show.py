@@ -16,6 +16,7 @@ from .bandeletize import debandeletize
 from .bitstream import Header, unpack
 from .coding import code_image, new_coders
 from .geometry import directions
+from .plots import save
 from .quantize import dequantize
 from .wavelets import padded_shape, subband_slices
 
@@ -78,8 +79,6 @@ def geometry_figure(data: bytes, path: Path) -> None:
     """
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
-
-    from .plots import save
 
     header, streams = unpack(data)
     trees, quantized, _ = code_image(new_coders(streams), header)

@@ -26,7 +26,14 @@ from .bitstream import FormatError
 from .geometry import directions, nearest_direction
 from .quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
 
-__all__ = ["code_tree", "predicted_directions", "reference_of", "N_SPLIT_CONTEXTS", "N_DIRECTION_CONTEXTS"]
+__all__ = [
+    "code_tree",
+    "cell_maps",
+    "predicted_directions",
+    "reference_of",
+    "N_SPLIT_CONTEXTS",
+    "N_DIRECTION_CONTEXTS",
+]
 
 _MAX_LEVELS = 4  # root widths up to 32
 _N_ACTIVITY = 4
@@ -45,7 +52,7 @@ _SYMBOL_BASES = _SYMBOL + np.concatenate([[0], np.cumsum([1 << _n_bits(k) for k 
 N_DIRECTION_CONTEXTS = int(_SYMBOL_BASES[-1])
 
 
-def _cell_maps(tree: Quadtree) -> tuple[np.ndarray, np.ndarray]:
+def cell_maps(tree: Quadtree) -> tuple[np.ndarray, np.ndarray]:
     """Leaf width and direction angle (NaN for NULL) of every 4 x 4 cell of a quadtree."""
     widths = np.zeros(tree.leaf[0].shape if tree.leaf else (0, 0), np.int64)
     angles = np.full(widths.shape, np.nan)
@@ -64,7 +71,7 @@ class _Reference:
 
     def __init__(self, tree: Quadtree | None, scale: int):
         self.scale = scale
-        self.widths, self.angles = _cell_maps(tree) if tree is not None and tree.root else (None, None)
+        self.widths, self.angles = cell_maps(tree) if tree is not None and tree.root else (None, None)
 
     def at(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(leaf width in current-subband pixels, 0 if unknown; angle, NaN if none)."""

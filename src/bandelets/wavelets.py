@@ -35,6 +35,7 @@ from .bitstream import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
 
 __all__ = [
     "check_extension",
+    "subband_norms",
     "subband_slices",
     "wavedec",
     "waverec",
@@ -271,7 +272,7 @@ def _synthesis_norms_1d(levels: int) -> tuple[np.ndarray, np.ndarray]:
     return scaling, wavelet
 
 
-def _subband_norms(wavelet: str, levels: int) -> tuple[float, ...]:
+def subband_norms(wavelet: str, levels: int) -> tuple[float, ...]:
     """Norm of the synthesis function of the approximation and of each detail subband.
 
     Orthogonal wavelets give 1. The CDF 9/7 functions are separable products of 1D scaling
@@ -288,7 +289,7 @@ def _subband_norms(wavelet: str, levels: int) -> tuple[float, ...]:
 
 
 def _norm_map(shape: tuple[int, int], wavelet: str, levels: int) -> np.ndarray:
-    norms = _subband_norms(wavelet, levels)
+    norms = subband_norms(wavelet, levels)
     scale = np.empty(shape)
     h, w = shape[0] >> levels, shape[1] >> levels
     scale[:h, :w] = norms[0]

@@ -47,7 +47,7 @@ with atheris.instrument_imports(include=["bandelets"]):
     import bandelets
     import bandelets.encoder  # imported lazily by the package: import it here to instrument it
     from bandelets.bitstream import MAX_LEVELS, WAVELETS, FormatError
-    from bandelets.wavelets import _subband_norms
+    from bandelets.wavelets import subband_norms
 
 LIMITS = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20}
 MAX_SECONDS = 2.0
@@ -145,7 +145,7 @@ def main() -> None:
         bandelets.decode(path.read_bytes())
     for wavelet in WAVELETS:
         for levels in range(1, MAX_LEVELS + 1):
-            _subband_norms(wavelet, levels)
+            subband_norms(wavelet, levels)
     runs[0] = next((int(a.split("=", 1)[1]) for a in sys.argv if a.startswith("-runs=")), 0)
     atheris.Setup(sys.argv, test_one_input, custom_mutator=custom_mutator)
     atheris.Fuzz()

@@ -13,7 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bitstream import DEFAULT_NORMAL_WEIGHT
+from ..bitstream import DEFAULT_NORMAL_WEIGHT, unpack
+from ..decoder import decode_parsed
+from ..encoder import encode_with_stats
+from ..options import EncodeOptions
 from . import checks, geometry_image, sphere
 
 __all__ = [
@@ -242,9 +245,6 @@ def encode_mesh(
     -------
     bytes
     """
-    from ..encoder import encode_with_stats
-    from ..options import EncodeOptions
-
     targets = {"bpp": bpp, "bits_per_vertex": bits_per_vertex, "n_bytes": n_bytes}
     given = [name for name, value in targets.items() if value is not None]
     if len(given) > 1:
@@ -291,9 +291,6 @@ def decode_mesh(data: bytes):
         A corrupt file (``bandelets.FormatError``), or one that is not a square geometry image
         of even side.
     """
-    from ..bitstream import unpack
-    from ..decoder import decode_parsed
-
     header, streams = unpack(bytes(data))
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError(
