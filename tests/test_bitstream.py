@@ -6,6 +6,7 @@ import struct
 import subprocess
 import sys
 import textwrap
+import typing
 import zlib
 
 import numpy as np
@@ -14,10 +15,16 @@ import pytest
 import bandelets
 from bandelets.bitstream import (
     FORMAT_VERSION,
+    KINDS,
     MAGIC,
     NORMAL_MAP_WEIGHT,
+    TRANSFORMS_1D,
+    WAVELETS,
     FormatError,
     Header,
+    Kind,
+    Transform1D,
+    Wavelet,
     implied_options,
     pack,
     unpack,
@@ -57,6 +64,12 @@ def normal_file():
 def test_format_error_is_a_value_error():
     assert issubclass(FormatError, ValueError)
     assert bandelets.FormatError is FormatError
+
+
+def test_the_types_of_the_names_are_the_coded_names():
+    assert typing.get_args(Kind) == KINDS
+    assert typing.get_args(Wavelet) == WAVELETS
+    assert typing.get_args(Transform1D) == TRANSFORMS_1D
 
 
 @pytest.mark.parametrize(

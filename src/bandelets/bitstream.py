@@ -71,6 +71,8 @@ __all__ = [
     "TRANSFORMS_1D",
     "EXTENSIONS",
     "Kind",
+    "Wavelet",
+    "Transform1D",
     "DEFAULT_WAVELET",
     "DEFAULT_TRANSFORM_1D",
     "DEFAULT_NORMAL_WEIGHT",
@@ -105,7 +107,10 @@ EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
 KINDS, TRANSFORMS, WAVELETS, TRANSFORMS_1D, EXTENSIONS = map(
     tuple, (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
 )
+# The same names as types, for signatures (tests/test_bitstream.py checks they agree).
 Kind = Literal["image", "normal-map", "geometry-image"]
+Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8"]
+Transform1D = Literal["haar", "alpert2"]
 _KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF = (
     {code: name for name, code in codes.items()}
     for codes in (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
@@ -155,11 +160,11 @@ class Header:
     channels: int
     kind: Kind
     transform: str
-    wavelet: str
+    wavelet: Wavelet
     levels: int
     threshold: float
     depth: int = 0
-    transform_1d: str = DEFAULT_TRANSFORM_1D
+    transform_1d: Transform1D = DEFAULT_TRANSFORM_1D
     # Geometry images (the defaults for any other kind, except frames with NORMAL_MAP_WEIGHT for a
     # normal map of three channels):
     extension: str = "symmetric"

@@ -7,6 +7,7 @@ Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 
@@ -22,6 +23,8 @@ from .bitstream import (
     FormatError,
     Header,
     Kind,
+    Transform1D,
+    Wavelet,
     implied_options,
     pack,
     unpack,
@@ -137,8 +140,8 @@ def encode(
     psnr: float | None = None,
     transform: str = "bandelet",
     kind: Kind = "image",
-    wavelet: str = DEFAULT_WAVELET,
-    transform_1d: str = DEFAULT_TRANSFORM_1D,
+    wavelet: Wavelet | Literal["auto"] = DEFAULT_WAVELET,
+    transform_1d: Transform1D = DEFAULT_TRANSFORM_1D,
     depth: int = 0,
     frames: bool = False,
     normal_weight: float = DEFAULT_NORMAL_WEIGHT,

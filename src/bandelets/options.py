@@ -8,6 +8,7 @@ work on it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -23,6 +24,8 @@ from .bitstream import (
     TRANSFORMS_1D,
     WAVELETS,
     Kind,
+    Transform1D,
+    Wavelet,
 )
 from .memory import encoder_memory
 from .wavelets import check_extension
@@ -60,8 +63,8 @@ class EncodeOptions:
 
     transform: str = "bandelet"
     kind: Kind = "image"
-    wavelet: str = DEFAULT_WAVELET
-    transform_1d: str = DEFAULT_TRANSFORM_1D
+    wavelet: Wavelet | Literal["auto"] = DEFAULT_WAVELET
+    transform_1d: Transform1D = DEFAULT_TRANSFORM_1D
     depth: int = 0
     frames: bool = False
     normal_weight: float = DEFAULT_NORMAL_WEIGHT

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bandeletize import bandeletize, debandeletize
-from .bitstream import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET
+from .bitstream import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET, Transform1D, Wavelet
 from .geometry import directions, nearest_direction
 from .lagrangian import LAMBDA, best_directions
 from .options import check_image, check_options, check_threshold
@@ -130,10 +130,10 @@ def forward(
     channel: np.ndarray,
     threshold: float,
     *,
-    wavelet: str = DEFAULT_WAVELET,
+    wavelet: Wavelet = DEFAULT_WAVELET,
     levels: int | None = None,
     transform: str = "bandelet",
-    transform_1d: str = DEFAULT_TRANSFORM_1D,
+    transform_1d: Transform1D = DEFAULT_TRANSFORM_1D,
 ) -> Bandelets:
     """Bandelet transform of one channel, with the basis chosen for threshold ``T``.
 
