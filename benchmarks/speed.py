@@ -1,16 +1,17 @@
 """Speed of the codec beside OpenJPEG and AVIF, on the same image, in one run.
 
 For a generated crease normal map of each size: the median over ``--repeat`` runs of
-bandelet encode at 1 bpp (rate control included), encode at a fixed threshold, and decode,
-with OpenJPEG (JPEG2000, 16-bit) and libavif (12-bit, speed 6) encode and decode times on
-the same map through imagecodecs, and the ratios; also the process CPU time of the bandelet
-runs (all threads: less sensitive to other load on the machine than wall time). Before that,
-the cold start: import, compilation of every numba kernel (empty cache) and a small encode.
-Then the time per pixel against the 512 x 512 one, and the peak resident memory of a
-2048 x 2048 x 3 bandelet encode (in a child process whose high-water mark is reset after the
-map is generated, Linux only).
+bandelet encode at 1 bpp (rate control and the encoder's restoration search included), decode
+(restoration as the file asks) and decode without restoration, with OpenJPEG (JPEG2000,
+16-bit) and libavif (12-bit, speed 6) encode and decode times on the same map through
+imagecodecs, and the ratios (the figures to quote: the machine may be shared); also the
+process CPU time of the bandelet runs (all threads). A size the default memory limits refuse
+is reported with the refusal. Before that, the cold start: import, compilation of every numba
+kernel (empty cache) and a small encode. Then the time per pixel against the 512 x 512 one;
+with ``--memory``, the peak resident memory of an encode and of a decode of each size (each in
+a child process whose high-water mark is reset once the map or file is made, Linux only).
 
-    python benchmarks/speed.py [--sizes 256,512,1024,2048] [--repeat 3]
+    python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start]
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
+from bandelets.bitstream import unpack
+from bandelets.options import check_image
 from bandelets.samples import crease_normal_map
 
 
@@ -60,49 +63,71 @@ def _cold_start_seconds() -> float:
     return float(out.stdout.split()[-1])
 
 
-def _peak_memory_mib(size: int) -> float:
-    """Peak resident memory of a process during one bandelet encode (Linux: VmHWM, reset
-    after the map is generated so that only the encode counts; imports included)."""
-    code = (
-        "import bandelets; from bandelets.samples import crease_normal_map; "
+def _peak_memory_mib(size: int, what: str) -> str:
+    """Peak resident memory of a process during one bandelet encode at 1 bpp or one decode of
+    that file (Linux: VmHWM, reset after the map, or the file, is made so that only the
+    measured call counts; imports included), or the one-line error that refused it."""
+    make = (
+        "import bandelets, sys; from bandelets.samples import crease_normal_map; "
         f"n = crease_normal_map({size}, supersampling=1); "
-        "open('/proc/self/clear_refs', 'w').write('5'); "
-        "bandelets.encode(n, threshold=0.05, kind='normal-map'); "
-        "print([l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1])"
     )
-    # Twice: the first run may compile numba's kernels (LLVM's memory would count), the
-    # second loads them from numba's cache as every later run does.
-    for _ in range(2):
-        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return int(out.stdout.split()[-1]) / 1024
+    if what == "decode":
+        make += "data = bandelets.encode(n, bpp=1, kind='normal-map'); "
+    call = "bandelets.encode(n, bpp=1, kind='normal-map')" if what == "encode" else "bandelets.decode(data)"
+    code = (
+        make
+        + "open('/proc/self/clear_refs', 'w').write('5')\n"
+        + f"try:\n    {call}\nexcept ValueError as e:\n    print('refused:', e); sys.exit()\n"
+        + "print([l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    last = out.stdout.strip().splitlines()[-1]
+    return last if last.startswith("refused") else f"{int(last) / 1024:.0f} MiB"
+
+
+def _fits(size: int) -> str | None:
+    """The error that refuses a size x size x 3 encode under the default limits, if any."""
+    try:
+        check_image(np.zeros((size, size, 3)), "normal-map")
+    except ValueError as err:
+        return str(err)
+    return None
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="256,512,1024,2048")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--memory-size", type=int, default=2048)
+    parser.add_argument("--memory", action="store_true", help="peak RSS of an encode and a decode per size")
+    parser.add_argument(
+        "--no-cold-start", action="store_true", help="skip the cold start (empty numba cache)"
+    )
     args = parser.parse_args()
-    print(f"cold start (import, compile every kernel, encode + decode 64^2): {_cold_start_seconds():.2f} s")
+    if not args.no_cold_start:
+        print(
+            f"cold start (import, compile every kernel, encode + decode 64^2): {_cold_start_seconds():.2f} s"
+        )
     start = time.perf_counter()
     bandelets.decode(bandelets.encode(crease_normal_map(64), threshold=0.05, kind="normal-map"))
     print(f"first call (numba cache load or compile): {time.perf_counter() - start:.2f} s")
     print(
-        f"{'size':>5} {'bdl 1bpp':>9} {'bdl T':>7} {'bdl dec':>8} {'j2k enc':>8} {'j2k dec':>8} "
+        f"{'size':>5} {'bdl 1bpp':>9} {'bdl dec':>8} {'plain dec':>9} {'j2k enc':>8} {'j2k dec':>8} "
         f"{'avif enc':>9} {'avif dec':>8} {'us/px 1bpp':>10}"
     )
     per_pixel = {}
     for size in (int(s) for s in args.sizes.split(",")):
+        refused = _fits(size)
+        if refused:
+            print(f"{size:>5} refused under the default limits: {refused}")
+            continue
         normals = crease_normal_map(size, supersampling=1 if size > 1024 else 4)
-        data = bandelets.encode(normals, threshold=0.05, kind="normal-map")
         cpu: list[float] = []
+        data = bandelets.encode(normals, bpp=1, kind="normal-map")
         rated = _median_seconds(
             partial(bandelets.encode, normals, bpp=1, kind="normal-map"), args.repeat, cpu
         )
-        fixed = _median_seconds(
-            partial(bandelets.encode, normals, threshold=0.05, kind="normal-map"), args.repeat, cpu
-        )
         decode = _median_seconds(partial(bandelets.decode, data), args.repeat, cpu)
+        plain = _median_seconds(partial(bandelets.decode, data, restore=False), args.repeat, cpu)
         u16 = np.round((normals + 1) / 2 * 65535).astype(np.uint16)
         u12 = np.round((normals + 1) / 2 * 4095).astype(np.uint16)
         j2k_encode = partial(
@@ -119,23 +144,30 @@ def main() -> None:
         ]
         per_pixel[size] = rated / size**2 * 1e6
         print(
-            f"{size:>5} {rated:>9.3f} {fixed:>7.3f} {decode:>8.3f} "
+            f"{size:>5} {rated:>9.3f} {decode:>8.3f} {plain:>9.3f} "
             + " ".join(f"{t:>8.3f}" for t in times)
             + f" {per_pixel[size]:>10.3f}"
         )
+        iterations = unpack(data)[0].restoration
         print(
-            f"      bandelets CPU time (all threads): 1 bpp {cpu[0]:.3f} s, T {cpu[1]:.3f} s, "
-            f"decode {cpu[2]:.3f} s"
+            f"      {len(data)} bytes, {iterations} restoration iterations; "
+            f"bandelets CPU time (all threads): 1 bpp {cpu[0]:.3f} s, decode {cpu[1]:.3f} s, "
+            f"plain decode {cpu[2]:.3f} s"
         )
         print(
-            f"      ratios to bandelets at 1 bpp: j2k encode x{rated / times[0]:.1f}, "
-            f"avif encode x{rated / times[2]:.1f}; decode: j2k x{decode / times[1]:.1f}, "
-            f"avif x{decode / times[3]:.1f}"
+            f"      ratios to OpenJPEG in this run: encode x{rated / times[0]:.1f}, "
+            f"decode x{decode / times[1]:.1f}, plain decode x{plain / times[1]:.1f}; "
+            f"to AVIF: encode x{rated / times[2]:.1f}, "
+            f"decode x{decode / times[3]:.1f}"
         )
+        if args.memory:
+            print(
+                f"      peak RSS: encode {_peak_memory_mib(size, 'encode')}, "
+                f"decode {_peak_memory_mib(size, 'decode')}"
+            )
     if 512 in per_pixel:
         for size, value in per_pixel.items():
             print(f"time per pixel at {size}: {value / per_pixel[512]:.2f} x the 512 one")
-    print(f"peak memory of a {args.memory_size}^2 x 3 encode: {_peak_memory_mib(args.memory_size):.0f} MiB")
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ from bandelets.bandeletize import ORDER, alpert_matrices
 from bandelets.geometry import directions, zigzag
 from bandelets.layout import Segment, subband_box
 from bandelets.quantize import MAX_INDEX, RECONSTRUCTION
-from bandelets.wavelets import subband_slices
+from bandelets.wavelets import spherical_folds, subband_norms, subband_slices
 
 # ---------------------------------------------------------------------------------------------
 # Quantizer.
@@ -92,8 +92,18 @@ def _square_groups(tree):
         yield int(width), directions(int(width))[1][dirs[pick]], rows, cols
 
 
-def bandeletize(subband, tree, kind="alpert2"):
-    out = subband.copy()
+def _output(x, out):
+    """Where a transform writes (``out``, which may be ``x``, filled with ``x``), and a copy of
+    ``x`` to read from."""
+    source = np.array(x, np.float64)
+    if out is None:
+        return source.copy(), source
+    out[...] = source
+    return out, source
+
+
+def bandeletize(subband, tree, kind="alpert2", out=None):
+    out, subband = _output(subband, out)
     for width, orders, rows, cols in _square_groups(tree):
         squares = subband[rows, cols].reshape(len(rows), -1)
         coeffs = transform_rows(np.take_along_axis(squares, orders, axis=1), kind)
@@ -103,8 +113,8 @@ def bandeletize(subband, tree, kind="alpert2"):
     return out
 
 
-def debandeletize(coefficients, tree, kind="alpert2"):
-    out = coefficients.copy()
+def debandeletize(coefficients, tree, kind="alpert2", out=None):
+    out, coefficients = _output(coefficients, out)
     for width, orders, rows, cols in _square_groups(tree):
         stored = coefficients[rows, cols].reshape(len(rows), -1)
         signal = transform_rows(stored[:, zigzag(width)], kind, inverse=True)
@@ -351,6 +361,111 @@ def cell_maps(tree):
         if d >= 0:
             angles[cells] = directions(int(w))[0][d]
     return widths, angles
+
+
+# ---------------------------------------------------------------------------------------------
+# The 2D CDF 9/7 lifting in numpy (bandelets.lifting compiles it), split and interleaved at
+# every step; the raw transform, before the subbands are normalised.
+
+_ALPHA, _BETA, _GAMMA, _DELTA, _ZETA = (
+    -1.586134342059924,
+    -0.052980118572961,
+    0.882911075530934,
+    0.443506852043971,
+    1.230174104914001,
+)
+
+
+def _symmetric(s, d):
+    return s[..., -1:], d[..., :1]
+
+
+def _lift_forward(x, extend=_symmetric):
+    s, d = x[..., 0::2].copy(), x[..., 1::2].copy()
+    d += _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s += _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d += _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s += _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    return s * _ZETA, d / _ZETA
+
+
+def _lift_inverse(s, d, extend=_symmetric):
+    s, d = s / _ZETA, d * _ZETA
+    s -= _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d -= _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    s -= _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
+    d -= _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
+    x = np.empty(s.shape[:-1] + (2 * s.shape[-1],))
+    x[..., 0::2], x[..., 1::2] = s, d
+    return x
+
+
+def _spherical(side, h, lines):
+    first, second, weight = spherical_folds(side, tuple(lines))
+    weight = weight[:, None]
+
+    def folded(v):
+        return (1.0 - weight) * v[first] + weight * v[second]
+
+    def extend(s, d):
+        if h == 1 and s.shape[1] > 1:
+            return 1.5 * folded(s[:, -1:]) - 0.5 * folded(s[:, -2:-1]), 1.5 * folded(d[:, :1]) - 0.5 * folded(
+                d[:, 1:2]
+            )
+        after = ((2 * h - 1) * s[:, -1:] + 2 * h * folded(s[:, -1:])) / (4 * h - 1)
+        return after, (d[:, :1] + 2 * h * folded(d[:, :1])) / (2 * h + 1)
+
+    return extend
+
+
+def _extensions(shape, level, extension):
+    if extension == "symmetric":
+        return _symmetric, _symmetric
+    side, h = shape[0], 1 << (level - 1)
+    m = side // h
+    return _spherical(side, h, [(0, h, m)]), _spherical(side, h, [(0, 2 * h, m // 2), (h, 2 * h, m // 2)])
+
+
+def cdf97_dec(x, levels, extension="symmetric"):
+    out = np.array(x, dtype=np.float64, copy=True)
+    h, w = out.shape
+    for level in range(1, levels + 1):
+        rows, cols = _extensions(out.shape, level, extension)
+        lo, hi = _lift_forward(out[:h, :w], rows)
+        lo, hi = _lift_forward(np.concatenate([lo, hi], axis=1).T, cols)
+        out[:h, :w] = np.concatenate([lo, hi], axis=1).T
+        h, w = h // 2, w // 2
+    return out
+
+
+def _scaled(c, levels, divide):
+    out = np.array(c, dtype=np.float64, copy=True)
+    h, w = c.shape[0] >> levels, c.shape[1] >> levels
+    wheres = [(slice(0, h), slice(0, w))] + [where for *_, where in subband_slices(c.shape, levels)]
+    for norm, where in zip(subband_norms("cdf97", levels), wheres, strict=True):
+        out[where] = out[where] / norm if divide else out[where] * norm
+    return out
+
+
+def wavedec(x, levels, extension="symmetric"):
+    """bandelets.wavelets.wavedec with cdf97: the raw transform, each subband times its norm."""
+    return _scaled(cdf97_dec(x, levels, extension), levels, False)
+
+
+def waverec(c, levels, extension="symmetric"):
+    return cdf97_rec(_scaled(c, levels, True), levels, extension)
+
+
+def cdf97_rec(c, levels, extension="symmetric"):
+    out = np.array(c, dtype=np.float64, copy=True)
+    height, width = out.shape
+    for level in range(levels, 0, -1):
+        rows, cols = _extensions(out.shape, level, extension)
+        h, w = height >> (level - 1), width >> (level - 1)
+        block = out[:h, :w].T
+        block = _lift_inverse(block[:, : h // 2], block[:, h // 2 :], cols).T
+        out[:h, :w] = _lift_inverse(block[:, : w // 2], block[:, w // 2 :], rows)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -201,3 +201,20 @@ def test_channels_transformed_in_threads_decode_the_same(monkeypatch, crease_map
     alone = bandelets.decode(data)
     monkeypatch.setattr(decoder, "THREADS_FROM", 0)
     np.testing.assert_array_equal(bandelets.decode(data), alone)
+
+
+@pytest.mark.parametrize("facing_away", [False, True])
+def test_the_encoders_measure_is_the_psnr_of_the_decoded_image(crease_map, facing_away):
+    """metrics.psnr_of_channels, which the encoder's search uses on every iteration, gives the PSNR
+    of what decode returns, for two channels (z rebuilt) and three."""
+    normals = crease_map.copy()
+    if facing_away:
+        normals[:, :32, 2] *= -1
+    data = bandelets.encode(normals, bpp=0.5, kind="normal-map", restore=False)
+    header, streams = unpack(data)
+    assert header.channels == (3 if facing_away else 2)
+    trees, quantized = decoder.decoded_bins(header, streams)
+    measure = metrics.psnr_of_channels(normals, "normal-map")
+    for _, channels in zip(range(3), decoder.restorations(header, trees, quantized), strict=False):
+        decoded = metrics.psnr(normals, decoder.decoded_image(channels, header), "normal-map")
+        assert measure(channels) == pytest.approx(decoded, abs=1e-9)

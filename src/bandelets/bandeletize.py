@@ -113,7 +113,7 @@ def alpert_matrices(n: int, k: int) -> np.ndarray:
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _level(v, tmp, mats, level, n, k):
     half = n // 2
     for g in range(half // k):
@@ -125,7 +125,7 @@ def _level(v, tmp, mats, level, n, k):
     v[:n] = tmp[:n]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def multiwavelet_inplace(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> None:
     """Full 1D multiwavelet transform of ``v`` in place (:func:`alpert_matrices`).
 
@@ -145,7 +145,7 @@ def multiwavelet_inplace(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> No
         n //= 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _inverse_1d(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> None:
     k = mats.shape[1] // 2
     n = 2 * k
@@ -162,7 +162,7 @@ def _inverse_1d(v: np.ndarray, tmp: np.ndarray, mats: np.ndarray) -> None:
         n *= 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rows(x: np.ndarray, mats: np.ndarray, inverse: bool) -> np.ndarray:
     out = x.copy()
     tmp = np.empty(x.shape[1])
@@ -186,13 +186,11 @@ def _square_groups(tree):
     ``orders`` (n_dirs, L*L) holds the reorderings of that width; ``top``, ``left`` and
     ``dirs`` (n_squares,) the corner and direction index of each of its squares.
     """
-    top, left, widths, dirs = tree.leaves()
-    for width in np.unique(widths[dirs >= 0]):
-        pick = (widths == width) & (dirs >= 0)
-        yield int(width), directions(int(width))[1], top[pick], left[pick], dirs[pick]
+    for width, top, left, dirs in tree.squares:
+        yield width, directions(width)[1], top, left, dirs
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _squares(source, out, width, top, left, dirs, orders, stored, mats, inverse):
     """(Inverse) bandeletization of the squares of one width, read from ``source`` and written
     into ``out``: samples in the direction's order, 1D transform, zig-zag storage ``stored``."""
@@ -215,9 +213,13 @@ def _squares(source, out, width, top, left, dirs, orders, stored, mats, inverse)
                 out[top[s] + stored[i] // width, left[s] + stored[i] % width] = v[i]
 
 
-def _transform(subband: np.ndarray, tree, kind: str, inverse: bool) -> np.ndarray:
+def _transform(subband: np.ndarray, tree, kind: str, inverse: bool, out: np.ndarray | None) -> np.ndarray:
     subband = np.asarray(subband, dtype=np.float64)
-    out = subband.copy()
+    if out is None:
+        out = subband.copy()
+    elif out is not subband:
+        out[...] = subband
+    # Each square is read whole before it is written: in place is safe.
     k = ORDER[kind]
     for width, orders, top, left, dirs in _square_groups(tree):
         mats = alpert_matrices(width * width, k)
@@ -225,7 +227,9 @@ def _transform(subband: np.ndarray, tree, kind: str, inverse: bool) -> np.ndarra
     return out
 
 
-def bandeletize(subband: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D) -> np.ndarray:
+def bandeletize(
+    subband: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D, out: np.ndarray | None = None
+) -> np.ndarray:
     """Bandelet coefficients of one subband for a given quadtree and directions.
 
     Parameters
@@ -236,21 +240,25 @@ def bandeletize(subband: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D) -> 
         Leaf squares and their directions.
     kind : str
         1D transform, one of :data:`bandelets.bitstream.TRANSFORMS_1D`.
+    out : ndarray, shape (h, w), float64, optional
+        Where to write the result (``subband`` itself for a transform in place).
 
     Returns
     -------
     ndarray, shape (h, w): the wavelet coefficients with every square that has a direction
     replaced by its 1D coefficients in zig-zag order.
     """
-    return _transform(subband, tree, kind, inverse=False)
+    return _transform(subband, tree, kind, False, out)
 
 
-def debandeletize(coefficients: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D) -> np.ndarray:
-    """Inverse of :func:`bandeletize`: wavelet coefficients of the subband."""
-    return _transform(coefficients, tree, kind, inverse=True)
+def debandeletize(
+    coefficients: np.ndarray, tree, kind: str = DEFAULT_TRANSFORM_1D, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Inverse of :func:`bandeletize`: wavelet coefficients of the subband (into ``out`` if given)."""
+    return _transform(coefficients, tree, kind, True, out)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bins(bins, width, top, left, dirs, orders, stored, mats, threshold):
     n = width * width
     v = np.empty(n)

@@ -415,6 +415,9 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always")
         try:
             args = parser.parse_args(argv)
+            from .compilation import announce  # numba: after the arguments are read
+
+            announce()
             commands[args.command](args)
         except _UsageError as err:
             print(f"bandelets: error: {err} (see bandelets --help)", file=sys.stderr)

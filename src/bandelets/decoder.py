@@ -129,8 +129,9 @@ def _channel_map(header: Header):
 
 def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray]):
     """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
-    inverse. With local frames, those of every level are the ones the decoder finds from the
-    dequantized bins ``quantized`` (:func:`bandelets.frames.to_global`), fixed from then on."""
+    inverse (which overwrites its argument). With local frames, those of every level are the
+    ones the decoder finds from the dequantized bins ``quantized``
+    (:func:`bandelets.frames.to_global`), fixed from then on."""
     t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
     each = _channel_map(header)
     level_frames = None
@@ -140,17 +141,21 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray])
         ]
         level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
 
+    # In place, channel by channel: no copy of the image besides the analysis' output.
     def analysis(x: np.ndarray) -> np.ndarray:
-        c = each(lambda channel: wavedec(channel, *args), x)
+        c = np.empty_like(x)
+        each(lambda k: wavedec(x[k], *args, out=c[k]), range(len(c)))
         if level_frames is not None:
-            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=True)
-        return np.array(each(lambda channel: apply_trees(channel, levels, trees, bandeletize, t1d), c))
+            frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=True)
+        each(lambda k: apply_trees(c[k], levels, trees, bandeletize, t1d, inplace=True), range(len(c)))
+        return c
 
-    def synthesis(c: np.ndarray) -> np.ndarray:
-        c = each(lambda channel: apply_trees(channel, levels, trees, debandeletize, t1d), c)
+    def synthesis(c: np.ndarray) -> np.ndarray:  # overwrites c
+        each(lambda k: apply_trees(c[k], levels, trees, debandeletize, t1d, inplace=True), range(len(c)))
         if level_frames is not None:
-            frames.rotate_levels(c, level_frames, levels, header.normal_weight, local=False)
-        return np.array(each(lambda channel: waverec(channel, *args), c))
+            frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=False)
+        each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
+        return c
 
     return analysis, synthesis
 

@@ -30,7 +30,7 @@ from .bitstream import (
     unpack,
 )
 from .coding import code_image, new_coders
-from .decoder import decode, decoded_image, restorations
+from .decoder import decode, restorations
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
 from .memory import check_memory
@@ -324,9 +324,9 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
     except FormatError:  # the decoder could not afford it either
         return encoded
     best, best_psnr = 0, -np.inf
-    measure = metrics.psnr_against(reference, header.kind)
+    measure = metrics.psnr_of_channels(reference, header.kind)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins)):
-        value = measure(decoded_image(channels, header))
+        value = measure(channels)
         if value > best_psnr:
             best, best_psnr = n, value
         if n == MAX_RESTORATION or n - best >= _RESTORATION_PATIENCE:

@@ -9,8 +9,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 
-__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "psnr_against", "peak", "unit_vectors"]
+__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "psnr_against", "psnr_of_channels", "peak", "unit_vectors"]
 
 
 def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
@@ -67,6 +68,54 @@ def psnr_against(reference: np.ndarray, kind: str = "image") -> Callable[[np.nda
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
     return measure
+
+
+def psnr_of_channels(reference: np.ndarray, kind: str = "image") -> Callable[[np.ndarray], float]:
+    """:func:`psnr_against` ``reference`` of the image that decoded channels stand for, measured
+    from the channels themselves, without making that image: the encoder measures every
+    restoration iteration, and making the image took as long as the iteration.
+
+    The callable takes ``(C, H', W')`` channels, ``H' >= H``, ``W' >= W`` (padded; cropped to the
+    reference). For a normal map, two channels are ``x, y`` (``z = sqrt(max(0, 1 - x^2 - y^2))``)
+    and three ``x, y, z``, all renormalised as :func:`unit_vectors` does; the error is summed in
+    one pass, so the value may differ from :func:`psnr` of the decoded array in the last digits.
+    """
+    reference = np.asarray(reference, np.float64)
+    if kind != "normal-map":
+        measure = psnr_against(reference, kind)
+        rows, cols = reference.shape[:2]
+        return lambda channels: measure(np.moveaxis(channels[:, :rows, :cols], 0, -1))
+    reference = unit_vectors(reference)
+    top = peak(reference, kind)
+
+    def measure(channels: np.ndarray) -> float:
+        rmse = float(np.sqrt(_normal_map_sse(reference, channels) / reference.size))
+        return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
+
+    return measure
+
+
+@njit(cache=True, nogil=True)
+def _normal_map_sse(reference, channels):
+    """Squared error of the unit vectors of ``channels`` (2: z rebuilt) against ``reference``."""
+    rows, cols = reference.shape[:2]
+    sse = 0.0
+    for i in range(rows):
+        for j in range(cols):
+            x, y = channels[0, i, j], channels[1, i, j]
+            if channels.shape[0] == 2:
+                z = np.sqrt(max(1.0 - (x * x + y * y), 0.0))
+            else:
+                z = channels[2, i, j]
+            norm = np.sqrt(x * x + y * y + z * z)
+            if norm > 0:
+                x, y, z = x / norm, y / norm, z / norm
+            else:  # unit_vectors: a zero vector becomes +z
+                z = 1.0
+            sse += (
+                (reference[i, j, 0] - x) ** 2 + (reference[i, j, 1] - y) ** 2 + (reference[i, j, 2] - z) ** 2
+            )
+    return sse
 
 
 def bd_psnr(rates_a, psnrs_a, rates_b, psnrs_b) -> float:

@@ -98,6 +98,18 @@ class Quadtree:
         """
         return self._leaves
 
+    @cached_property
+    def squares(self) -> tuple[tuple[int, np.ndarray, np.ndarray, np.ndarray], ...]:
+        """``(width, rows, cols, directions)`` of the leaves that have a direction, one entry per
+        width (ascending), each in coding order. Computed once per quadtree (the restoration
+        transforms with the same trees at every iteration); the arrays are shared."""
+        rows, cols, widths, dirs = self.leaves()
+        out = []
+        for width in np.unique(widths[dirs >= 0]):
+            pick = (widths == width) & (dirs >= 0)
+            out.append((int(width), rows[pick], cols[pick], dirs[pick]))
+        return tuple(out)
+
     def find_leaves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``rows, cols, widths, directions`` of every leaf, in coding order.
 

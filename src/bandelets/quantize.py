@@ -28,6 +28,7 @@ __all__ = [
     "dequantize",
     "optimise_bins",
     "bin_bounds",
+    "clip_into_bins",
     "bin_index",
     "quantization_error",
     "bin_and_error",
@@ -197,3 +198,28 @@ def bin_bounds(q: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]
     high = np.where(a <= 1, ZERO_UP_TO, a + 1.0) * threshold
     negative = q < 0
     return np.where(negative, -high, low), np.where(negative, -low, high)
+
+
+def clip_into_bins(c: np.ndarray, q: np.ndarray, threshold: float) -> None:
+    """Clip every value of ``c`` into the interval of its bin index (:func:`bin_bounds` of ``q``),
+    in place, without making the bounds: the same numbers as ``np.clip(c, *bin_bounds(q, T))``.
+
+    Parameters
+    ----------
+    c : ndarray of float64, shape (H, W)
+    q : ndarray of int, shape (H, W)
+    threshold : float
+    """
+    _clip_into_bins(c, q, float(threshold))
+
+
+@njit(cache=True, nogil=True)
+def _clip_into_bins(c, q, threshold):
+    for i in range(c.shape[0]):
+        for j in range(c.shape[1]):
+            a = abs(q[i, j])
+            low = (-ZERO_UP_TO if a == 0 else (PROMOTE_ABOVE if a == 1 else float(a))) * threshold
+            high = (ZERO_UP_TO if a <= 1 else a + 1.0) * threshold
+            if q[i, j] < 0:
+                low, high = -high, -low
+            c[i, j] = min(max(c[i, j], low), high)

@@ -116,13 +116,15 @@ def _children_directions(children: np.ndarray, width: int) -> np.ndarray:
 
 
 def apply_trees(
-    coefficients: np.ndarray, levels: int, trees: list, transform_fn, transform_1d: str
+    coefficients: np.ndarray, levels: int, trees: list, transform_fn, transform_1d: str, inplace: bool = False
 ) -> np.ndarray:
     """A copy of the Mallat-layout ``coefficients`` (H', W') with ``transform_fn`` (:func:`bandeletize`
-    or :func:`debandeletize`) applied to every detail subband with its tree."""
-    out = coefficients.copy()
+    or :func:`debandeletize`) applied to every detail subband with its tree; ``inplace``: the
+    ``coefficients`` themselves, transformed."""
+    out = coefficients if inplace else coefficients.copy()
     for (_, _, where), tree in zip(subband_slices(coefficients.shape, levels), trees, strict=True):
-        out[where] = transform_fn(coefficients[where], tree, transform_1d)
+        if tree.squares:  # else every square is NULL: the wavelet coefficients stay
+            transform_fn(out[where], tree, transform_1d, out=out[where])
     return out
 
 

@@ -7,10 +7,13 @@ Two families are offered:
   extension of Praun and Hoppe for octahedral geometry images (each edge glued to itself
   reversed). PyWavelets has this filter ("bior4.4") but its symmetric mode is not critically
   sampled (each level grows the subbands by the filter length), which would break the
-  one-coefficient-per-pixel layout the bandelet quadtree needs; so this lifting is written here.
+  one-coefficient-per-pixel layout the bandelet quadtree needs; so this lifting is written here
+  (compiled passes in :mod:`bandelets.lifting`).
 * any orthogonal Daubechies-family name PyWavelets knows (``"haar"``, ``"db2"``, ``"db4"``, ...),
-  through :func:`pywt.wavedec2` with periodic extension, the only critically sampled
-  extension under which these filters stay orthogonal.
+  with periodic extension, the only critically sampled extension under which these filters
+  stay orthogonal: through :func:`pywt.wavedec2`, except Haar, lifted by
+  :mod:`bandelets.lifting` (the same coefficients to the last bit, without PyWavelets' cost
+  per call).
 
 Coefficients are returned in the Mallat layout: one ``(H, W)`` array whose top-left
 ``H / 2**levels x W / 2**levels`` block is the approximation and where the detail subbands
@@ -31,10 +34,12 @@ from functools import cache
 import numpy as np
 import pywt
 
+from . import lifting
 from .bitstream import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
 
 __all__ = [
     "check_extension",
+    "spherical_folds",
     "subband_norms",
     "subband_slices",
     "wavedec",
@@ -42,13 +47,6 @@ __all__ = [
     "max_levels",
     "padded_shape",
 ]
-
-# Lifting factorisation of the CDF 9/7 filter pair (Daubechies and Sweldens 1998).
-_ALPHA = -1.586134342059924
-_BETA = -0.052980118572961
-_GAMMA = 0.882911075530934
-_DELTA = 0.443506852043971
-_ZETA = 1.230174104914001
 
 
 def padded_shape(shape: tuple[int, int], levels: int) -> tuple[int, int]:
@@ -88,55 +86,33 @@ def subband_slices(shape: tuple[int, int], levels: int) -> list[tuple[int, int, 
     return out
 
 
-def _symmetric(s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Whole-sample symmetric extension: ``s[n]`` past the end is ``s[n-1]``, ``d[-1]`` is ``d[0]``."""
-    return s[..., -1:], d[..., :1]
-
-
-def _lift_forward(x: np.ndarray, extend=_symmetric) -> tuple[np.ndarray, np.ndarray]:
-    """One level of CDF 9/7 analysis along the last axis (even length).
-
-    ``extend(s, d)`` gives the sample of ``s`` past its end and the one of ``d`` before its
-    start, shape ``(..., 1)``; each reads only the channel it extends, so that every lifting
-    step stays exactly invertible.
-    """
-    s = x[..., 0::2].copy()
-    d = x[..., 1::2].copy()
-    d += _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
-    s += _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
-    d += _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
-    s += _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
-    return s * _ZETA, d / _ZETA
-
-
-def _lift_inverse(s: np.ndarray, d: np.ndarray, extend=_symmetric) -> np.ndarray:
-    """Exact inverse of :func:`_lift_forward` (with the same ``extend``)."""
-    s = s / _ZETA
-    d = d * _ZETA
-    s -= _DELTA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
-    d -= _GAMMA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
-    s -= _BETA * (d + np.concatenate([extend(s, d)[1], d[..., :-1]], axis=-1))
-    d -= _ALPHA * (s + np.concatenate([s[..., 1:], extend(s, d)[0]], axis=-1))
-    x = np.empty(s.shape[:-1] + (2 * s.shape[-1],))
-    x[..., 0::2] = s
-    x[..., 1::2] = d
-    return x
-
-
-def _spherical(side: int, spacing: int, lines: list[tuple[int, int, int]]):
-    """The extension of one lifting pass over a level of an octahedral geometry image.
+@cache
+def spherical_folds(side: int, lines: tuple[tuple[int, int, int], ...]) -> tuple[np.ndarray, ...]:
+    """The mirror of every line of a lifting pass over a level of an octahedral geometry image.
 
     The image (``side`` x ``side`` pixels, centres at integer positions) is glued across each
     edge to itself turned by half a turn about the edge's midpoint: the sample ``k`` pixels
     beyond an edge is the one ``k - 1`` inside it, at the mirrored place along the edge. At a
-    level whose samples lie ``spacing`` pixels apart along the lifting axis, the sample a
-    lifting step needs past the end (``s`` at pixel ``side``) or before the start (``d`` at
-    pixel ``-spacing``) is interpolated linearly between the channel's last (first) sample and
-    the fold of that sample, which lies ``2 spacing - 1`` (``1``) pixels beyond the edge; at the
-    finest level it is extrapolated from the folds of the last (first) two samples instead.
+    level whose samples lie ``h`` pixels apart along the lifting axis, the sample a lifting step
+    needs past the end (``s`` at pixel ``side``) or before the start (``d`` at pixel ``-h``) is
+    interpolated linearly between the line's last (first) sample and the fold of that sample,
+    which lies ``2 h - 1`` (``1``) pixels beyond the edge; at the finest level it is
+    extrapolated from the folds of the last (first) two samples instead (the octahedral map
+    has a kink across the edge, which interpolating over the edge would carry into the
+    details); coarser levels interpolate with convex weights (extrapolating there amplifies
+    the quantization error at the border and loses on meshes). :mod:`bandelets.lifting` does
+    that arithmetic.
+
     The fold belongs to the line mirrored along the edge (pixel ``side - 1 - p`` for a line at
     pixel ``p``); ``lines`` lists the lines (the first axis) as runs ``(first pixel, spacing,
     count)``, and each line reads its mirror by linear interpolation within its own run.
+
+    Returns
+    -------
+    first, second : ndarray of int64, shape (lines,)
+    weight : ndarray of float64, shape (lines,)
+        The mirror of line ``i`` is ``(1 - weight[i])`` line ``first[i]`` plus ``weight[i]``
+        line ``second[i]``.
     """
     first, second, weight = [], [], []
     start = 0
@@ -147,65 +123,66 @@ def _spherical(side: int, spacing: int, lines: list[tuple[int, int, int]]):
         second.append(start + np.clip(mirror // step + 1, 0, count - 1))
         weight.append((mirror - step * low).clip(0, step) / step)
         start += count
-    first, second = np.concatenate(first), np.concatenate(second)
-    weight = np.concatenate(weight)[:, None]
-    h = spacing
-
-    def folded(v: np.ndarray) -> np.ndarray:
-        return (1.0 - weight) * v[first] + weight * v[second]
-
-    def extend(s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if h == 1 and s.shape[1] > 1:
-            # The finest level continues the fold's far side from its two nearest samples
-            # (at 1 and 3 pixels): the octahedral map has a kink across the edge, which
-            # interpolating over the edge would carry into the details.
-            after = 1.5 * folded(s[:, -1:]) - 0.5 * folded(s[:, -2:-1])
-            before = 1.5 * folded(d[:, :1]) - 0.5 * folded(d[:, 1:2])
-            return after, before
-        # Coarser levels interpolate over the edge, with convex weights: extrapolating there
-        # amplifies the quantization error at the border and loses on meshes.
-        after = ((2 * h - 1) * s[:, -1:] + 2 * h * folded(s[:, -1:])) / (4 * h - 1)
-        before = (d[:, :1] + 2 * h * folded(d[:, :1])) / (2 * h + 1)
-        return after, before
-
-    return extend
+    return np.concatenate(first), np.concatenate(second), np.concatenate(weight).astype(np.float64)
 
 
-def _extensions(shape: tuple[int, int], level: int, extension: str):
-    """Extensions of the row pass and of the column pass of ``level`` (1 = finest)."""
+def _folds(shape: tuple[int, int], level: int, extension: str):
+    """The folds of the row pass and of the column pass of ``level`` (1 = finest), or Nones."""
     if extension == "symmetric":
-        return _symmetric, _symmetric
+        return None, None
     side, h = shape[0], 1 << (level - 1)
     m = side // h
     # Row pass: the rows of the level's approximation, pixels 0, h, 2h, ... Column pass: the
     # columns of its low half (pixels 0, 2h, ...), then of its high half (h, 3h, ...).
-    return _spherical(side, h, [(0, h, m)]), _spherical(side, h, [(0, 2 * h, m // 2), (h, 2 * h, m // 2)])
+    return spherical_folds(side, ((0, h, m),)), spherical_folds(
+        side, ((0, 2 * h, m // 2), (h, 2 * h, m // 2))
+    )
 
 
-def _cdf97_dec(x: np.ndarray, levels: int, extension: str = "symmetric") -> np.ndarray:
-    out = np.array(x, dtype=np.float64, copy=True)
+def _lifting_dec(out: np.ndarray, wavelet: str, levels: int, extension: str = "symmetric") -> np.ndarray:
+    """Raw (unnormalised) transform by :mod:`bandelets.lifting`, in place on ``out`` (float64,
+    row-major), which it returns: each level a row pass into a work array, then a column pass back."""
+    work = np.empty_like(out)
     h, w = out.shape
     for level in range(1, levels + 1):
-        rows, cols = _extensions(out.shape, level, extension)
-        block = out[:h, :w]
-        lo, hi = _lift_forward(block, rows)  # along rows: columns split
-        block = np.concatenate([lo, hi], axis=1)
-        lo, hi = _lift_forward(block.T, cols)  # along columns: rows split
-        out[:h, :w] = np.concatenate([lo, hi], axis=1).T
+        block, scratch = out[:h, :w], work[:h, :w]
+        if wavelet == "haar":  # columns first, as PyWavelets
+            lifting.haar_pass(block.T, scratch.T, True)
+            lifting.haar_pass(scratch, block, True)
+            _swap_haar_details(block)
+        else:
+            rows, cols = _folds(out.shape, level, extension)
+            lifting.cdf97_pass(block, scratch, True, rows, 1 << (level - 1))
+            lifting.cdf97_pass(scratch.T, block.T, True, cols, 1 << (level - 1))
         h, w = h // 2, w // 2
     return out
 
 
-def _cdf97_rec(c: np.ndarray, levels: int, extension: str = "symmetric") -> np.ndarray:
-    out = np.array(c, dtype=np.float64, copy=True)
+def _lifting_rec(out: np.ndarray, wavelet: str, levels: int, extension: str = "symmetric") -> np.ndarray:
+    """Inverse of :func:`_lifting_dec`, in place on ``out`` (float64, row-major), which it returns."""
+    work = np.empty_like(out)
     height, width = out.shape
     for level in range(levels, 0, -1):
-        rows, cols = _extensions(out.shape, level, extension)
         h, w = height >> (level - 1), width >> (level - 1)
-        block = out[:h, :w].T
-        block = _lift_inverse(block[:, : h // 2], block[:, h // 2 :], cols).T
-        out[:h, :w] = _lift_inverse(block[:, : w // 2], block[:, w // 2 :], rows)
+        block, scratch = out[:h, :w], work[:h, :w]
+        if wavelet == "haar":
+            _swap_haar_details(block)
+            lifting.haar_pass(block, scratch, False)
+            lifting.haar_pass(scratch.T, block.T, False)
+        else:
+            rows, cols = _folds(out.shape, level, extension)
+            lifting.cdf97_pass(block.T, scratch.T, False, cols, 1 << (level - 1))
+            lifting.cdf97_pass(scratch, block, False, rows, 1 << (level - 1))
     return out
+
+
+def _swap_haar_details(block: np.ndarray) -> None:
+    """Swap the two mixed subbands of a level, in place: PyWavelets, which coded Haar before the
+    lifting, stores the details along the columns in the H place, the transpose of CDF 9/7's."""
+    h, w = block.shape[0] // 2, block.shape[1] // 2
+    top = block[:h, w:].copy()
+    block[:h, w:] = block[h:, :w]
+    block[h:, :w] = top
 
 
 def _pywt_dec(x: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
@@ -233,12 +210,24 @@ def _pywt_rec(c: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
     return pywt.waverec2(coeffs, wavelet, mode="periodization")
 
 
+#: Wavelets lifted by :mod:`bandelets.lifting`; the others go through PyWavelets.
+_LIFTED = ("cdf97", "haar")
+
+
 def _raw_dec(x: np.ndarray, wavelet: str, levels: int, extension: str) -> np.ndarray:
-    return _cdf97_dec(x, levels, extension) if wavelet == "cdf97" else _pywt_dec(x, wavelet, levels)
+    """The raw coefficients of the channel ``x`` (float64, row-major), written over it."""
+    if wavelet in _LIFTED:
+        return _lifting_dec(x, wavelet, levels, extension)
+    x[...] = _pywt_dec(x, wavelet, levels)
+    return x
 
 
 def _raw_rec(c: np.ndarray, wavelet: str, levels: int, extension: str) -> np.ndarray:
-    return _cdf97_rec(c, levels, extension) if wavelet == "cdf97" else _pywt_rec(c, wavelet, levels)
+    """The channel of the raw coefficients ``c`` (float64, row-major), written over them."""
+    if wavelet in _LIFTED:
+        return _lifting_rec(c, wavelet, levels, extension)
+    c[...] = _pywt_rec(c, wavelet, levels)
+    return c
 
 
 def check_extension(shape: tuple[int, int], wavelet: str, levels: int, extension: str) -> None:
@@ -263,12 +252,14 @@ def _synthesis_norms_1d(levels: int) -> tuple[np.ndarray, np.ndarray]:
     scaling, wavelet = np.empty(levels + 1), np.empty(levels + 1)
     for level in range(1, levels + 1):
         for out, offset in ((scaling, 0), (wavelet, size >> level)):
-            x = np.zeros(size)
-            x[offset + (size >> (level + 1))] = 1.0
+            x = np.zeros((1, size))
+            x[0, offset + (size >> (level + 1))] = 1.0
+            work = np.empty_like(x)
             for k in range(level, 0, -1):
                 n = size >> (k - 1)
-                x[:n] = _lift_inverse(x[: n // 2].copy(), x[n // 2 : n].copy())
-            out[level] = math.sqrt(math.fsum(x * x))  # not BLAS: the same bits on every CPU
+                lifting.cdf97_pass(x[:, :n], work[:, :n], False)
+                x[:, :n] = work[:, :n]
+            out[level] = math.sqrt(math.fsum(x.ravel() * x.ravel()))  # not BLAS: the same bits on every CPU
     return scaling, wavelet
 
 
@@ -288,18 +279,19 @@ def subband_norms(wavelet: str, levels: int) -> tuple[float, ...]:
     return tuple(float(n) for n in norms)
 
 
-def _norm_map(shape: tuple[int, int], wavelet: str, levels: int) -> np.ndarray:
-    norms = subband_norms(wavelet, levels)
-    scale = np.empty(shape)
-    h, w = shape[0] >> levels, shape[1] >> levels
-    scale[:h, :w] = norms[0]
-    for norm, (*_, where) in zip(norms[1:], subband_slices(shape, levels), strict=True):
-        scale[where] = norm
-    return scale
+def _normalise(c: np.ndarray, wavelet: str, levels: int, inverse: bool = False) -> np.ndarray:
+    """Every subband of ``c`` multiplied (``inverse``: divided) by its norm, in place."""
+    if wavelet == "cdf97":
+        lifting.scale_subbands(c, levels, np.array(subband_norms(wavelet, levels)), inverse)
+    return c
 
 
 def wavedec(
-    x: np.ndarray, wavelet: str = DEFAULT_WAVELET, levels: int = 1, extension: str = "symmetric"
+    x: np.ndarray,
+    wavelet: str = DEFAULT_WAVELET,
+    levels: int = 1,
+    extension: str = "symmetric",
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Normalised 2D wavelet transform of one channel.
 
@@ -313,8 +305,10 @@ def wavedec(
         Number of decomposition levels.
     extension : {"symmetric", "spherical"}
         How ``cdf97`` extends the channel past its border: whole-sample symmetric, or glued
-        as an octahedral geometry image (:func:`_spherical`; square, side a multiple of
+        as an octahedral geometry image (:func:`spherical_folds`; square, side a multiple of
         ``2**levels``; ``cdf97`` only: the orthogonal wavelets are periodic).
+    out : ndarray, shape (H, W), float64, row-major, optional
+        Where to write the coefficients (``x`` itself for a transform in place).
 
     Returns
     -------
@@ -325,12 +319,29 @@ def wavedec(
     if wavelet not in WAVELETS:
         raise ValueError(f"unknown wavelet {wavelet!r}; choose one of {', '.join(WAVELETS)}")
     check_extension(x.shape, wavelet, levels, extension)
-    return _raw_dec(x, wavelet, levels, extension) * _norm_map(x.shape, wavelet, levels)
+    return _normalise(_raw_dec(_working_copy(x, out), wavelet, levels, extension), wavelet, levels)
 
 
 def waverec(
-    c: np.ndarray, wavelet: str = DEFAULT_WAVELET, levels: int = 1, extension: str = "symmetric"
+    c: np.ndarray,
+    wavelet: str = DEFAULT_WAVELET,
+    levels: int = 1,
+    extension: str = "symmetric",
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Inverse of :func:`wavedec`: ``(H, W)`` coefficients to an ``(H, W)`` channel."""
+    """Inverse of :func:`wavedec`: ``(H, W)`` coefficients to an ``(H, W)`` channel (written into
+    ``out`` if given, which may be ``c`` itself)."""
     check_extension(c.shape, wavelet, levels, extension)
-    return _raw_rec(c / _norm_map(c.shape, wavelet, levels), wavelet, levels, extension)
+    c = _normalise(_working_copy(c, out), wavelet, levels, inverse=True)
+    return _raw_rec(c, wavelet, levels, extension)
+
+
+def _working_copy(x: np.ndarray, out: np.ndarray | None) -> np.ndarray:
+    """``x`` copied into ``out`` (float64 row-major), or into a new array."""
+    if out is None:
+        return np.array(x, dtype=np.float64, order="C")
+    if out.shape != x.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a row-major float64 array of shape {x.shape}")
+    if out is not x:
+        out[...] = x
+    return out

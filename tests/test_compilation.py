@@ -1,0 +1,33 @@
+"""The first run says that it compiles (bandelets.compilation), in a process of its own."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from bandelets import compilation
+
+
+def _run(code: str) -> subprocess.CompletedProcess:
+    prelude = "import sys\nfrom numba import njit\nfrom bandelets import compilation\n"
+    return subprocess.run([sys.executable, "-c", prelude + code], capture_output=True, text=True, timeout=120)
+
+
+def test_the_first_compilation_is_announced_once():
+    done = _run(
+        "f = njit(lambda x: x * 3)\n"
+        "f(1)\n"  # compiled before anyone listens
+        "compilation.announce()\n"
+        "compilation.announce()\n"  # listens once
+        "f(2)\n"  # already compiled: nothing to say
+        "print('before', file=sys.stderr)\n"
+        "njit(lambda x: x + 1)(1)\n"
+        "njit(lambda x: x + 2)(1)\n"
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == f"before\n{compilation.MESSAGE}\n"
+
+
+def test_a_closed_stderr_does_not_fail_the_compilation():
+    done = _run("compilation.announce()\nsys.stderr.close()\nnjit(lambda x: x + 1)(1)\nprint('compiled')\n")
+    assert (done.returncode, done.stdout) == (0, "compiled\n")
