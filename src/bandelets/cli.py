@@ -185,6 +185,20 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=256, help="side of the image, even (default 256)")
     p.add_argument("--normals", help="also write the unit normals: 16-bit .png or float32 .npy")
     p.add_argument("-f", "--force", action="store_true", help="overwrite existing outputs")
+
+    p = sub.add_parser("batch", help="compress folders of images and meshes on Dask (local or a cluster)")
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="files, folders (recursive) and globs")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder of the .bdl files and the report")
+    target = p.add_mutually_exclusive_group()
+    target.add_argument("--bpp", type=float, help="target rate of the images (default 1), or of meshes")
+    target.add_argument("--psnr", type=float, help="target PSNR of the images in dB")
+    target.add_argument("--threshold", type=float, help="quantization threshold T of the images")
+    p.add_argument("--kind", choices=KINDS, default="image", help="kind of the image inputs (default image)")
+    p.add_argument("--bits-per-vertex", type=float, metavar="V", help="target of the meshes")
+    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
+    p.add_argument("--report", metavar="FILE", help="report .csv or .parquet (default DIR/report.csv)")
+    p.add_argument("-f", "--force", action="store_true", help="redo files an earlier run left up to date")
     return parser
 
 
@@ -406,11 +420,38 @@ def _geometry_image(args) -> None:
         write_array(args.normals, image.normals, "normal-map", 16)
 
 
+def _batch(args) -> int:
+    from .batch import batch
+
+    report = batch(
+        args.inputs,
+        args.out,
+        bpp=args.bpp,
+        psnr=args.psnr,
+        threshold=args.threshold,
+        kind=args.kind,
+        bits_per_vertex=args.bits_per_vertex,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        report=args.report,
+        force=args.force,
+        progress=sys.stderr.isatty(),
+    )
+    failed = report[report.status == "failed"]
+    for row in failed.itertuples():
+        named = row.error.startswith(f"{row.input}:")
+        print(f"bandelets: failed: {row.error if named else f'{row.input}: {row.error}'}", file=sys.stderr)
+    counts = report.status.value_counts()
+    print(", ".join(f"{counts.get(s, 0)} {s}" for s in ("ok", "skipped", "failed")))
+    return 1 if len(failed) else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     parser = _build_parser()
     commands = {"encode": _encode, "decode": _decode, "info": _info, "demo": _demo, "rd": _rd, "show": _show}
     commands |= {"mesh-encode": _mesh_encode, "mesh-decode": _mesh_decode, "geometry-image": _geometry_image}
+    commands["batch"] = _batch
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -418,7 +459,8 @@ def main(argv: list[str] | None = None) -> int:
             from .compilation import announce  # numba: after the arguments are read
 
             announce()
-            commands[args.command](args)
+            if commands[args.command](args):  # batch: some inputs failed
+                return 1
         except _UsageError as err:
             print(f"bandelets: error: {err} (see bandelets --help)", file=sys.stderr)
             return 2
