@@ -19,7 +19,7 @@ import pytest
 pytest.importorskip("distributed")
 
 import bandelets  # noqa: E402
-from bandelets.batch import COLUMNS, MANIFEST, batch, collect_inputs  # noqa: E402
+from bandelets.batching import COLUMNS, MANIFEST, batch, collect_inputs  # noqa: E402
 from bandelets.cli import main  # noqa: E402
 from bandelets.files import read_array  # noqa: E402
 from bandelets.metrics import psnr  # noqa: E402
@@ -117,7 +117,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_changed(tmp_path, threads_cl
     _png(library / "a.png", crease_normal_map(32))
     _png(library / "b.png", crease_normal_map(40))
     options = {"threshold": THRESHOLD, "kind": "normal-map", "client": threads_client}
-    first = batch([library], out, **options)
+    first = bandelets.batch([library], out, **options)  # the package exports the function
     assert list(first.status) == ["ok", "ok"]
     made = _mtimes(out)
 
@@ -187,12 +187,14 @@ def test_inputs_are_files_folders_and_globs(library):
 def test_bad_arguments_fail_before_any_work(tmp_path, library, capsys):
     with pytest.raises(ValueError, match="report must be a .csv or .parquet"):
         batch([library], tmp_path / "out", report=tmp_path / "report.txt")
+    (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="no images or meshes"):
-        batch([tmp_path / "out"], tmp_path / "out2")
+        batch([tmp_path / "empty"], tmp_path / "out")
     with pytest.raises(ValueError, match="bpp must be a positive number"):
         batch([library], tmp_path / "out", bpp=-1)
     assert main(["batch", str(library), "--out", str(tmp_path), "--bpp", "1", "--psnr", "40"]) == 2
     assert "not allowed with argument" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_parquet_needs_pyarrow(tmp_path, library, monkeypatch):

@@ -20,14 +20,16 @@ __version__ = "0.1.0"
 _HOME = {
     "Bandelets": "transform",
     "FormatError": "bitstream",
+    "batch": "batching",
     "decode": "decoder",
     "encode": "encoder",
     "forward": "transform",
     "inverse": "transform",
 }
-__all__ = ["Bandelets", "FormatError", "decode", "encode", "forward", "inverse"]
+__all__ = ["Bandelets", "FormatError", "batch", "decode", "encode", "forward", "inverse"]
 
 if TYPE_CHECKING:  # what the lazy loading below gives, for type checkers and IDEs
+    from .batching import batch
     from .bitstream import FormatError
     from .decoder import decode
     from .encoder import encode

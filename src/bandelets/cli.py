@@ -421,7 +421,7 @@ def _geometry_image(args) -> None:
 
 
 def _batch(args) -> int:
-    from .batch import batch
+    from .batching import batch
 
     report = batch(
         args.inputs,

@@ -74,9 +74,9 @@ MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 #: The sidecar of finished files in the output folder (JSON lines).
 MANIFEST = ".bandelets-batch.jsonl"
 
-# Memory of a worker process before any file: the interpreter, numpy, numba and its compiled
-# kernels, trimesh and pymeshlab, distributed (measured: about 330 MiB resident after one
-# 64 x 64 encode); rounded up.
+# Memory of a worker process besides its file: the interpreter, numpy, numba and its compiled
+# kernels, trimesh and pymeshlab, distributed (measured: 225 MiB resident after a 64 x 64
+# normal map, 326 MiB after a 162-vertex mesh too); rounded up.
 _WORKER_BASE = 512 * 2**20
 # A mesh: its parameterization and Hausdorff sampling hold a few hundred bytes per byte of the
 # input file at most (a rough bound: 200 B/B); the geometry image is at most 1024 x 1024 x 3.
@@ -334,11 +334,11 @@ def _read_manifest(path: Path) -> dict[str, dict]:
     return records
 
 
-def _check_report(report: Path) -> None:
+def _check_report(report: Path, out: Path) -> None:
     suffix = report.suffix.lower()
     if suffix not in (".csv", ".parquet"):
         raise ValueError(f"{report}: the report must be a .csv or .parquet file")
-    if not report.parent.is_dir():
+    if not report.parent.is_dir() and report.parent != out:  # the batch makes ``out``
         raise ValueError(f"{report}: folder {report.parent} does not exist")
     if suffix == ".parquet":
         import importlib.util
@@ -445,8 +445,7 @@ def batch(
     files, missing = collect_inputs(inputs)
     if not files and not missing:
         raise ValueError("no images or meshes found in the inputs")
-    out.mkdir(parents=True, exist_ok=True)
-    _check_report(report)
+    _check_report(report, out)
 
     manifest = out / MANIFEST
     previous = _read_manifest(manifest)
@@ -477,14 +476,33 @@ def batch(
     failures = len(rows)
     bar.set_postfix_str(f"{failures} failed")
     need = max((memory_estimate(Path(e[3].input), e[3].kind, e[3].target) for e in entries), default=0)
-    with bar, _client(client, scheduler, workers, need) as dask_client, open(manifest, "a") as sidecar:
-        from distributed import as_completed
+    with bar, _client(client, scheduler, workers, need) as dask_client:
+        out.mkdir(parents=True, exist_ok=True)  # once the cluster is there: nothing left if not
+        rows |= _run(dask_client, entries, previous, manifest, bar, failures)
+    # The sidecar again with one line per output, however many runs appended to it.
+    write_atomic(manifest, "".join(json.dumps(r) + "\n" for r in previous.values()).encode())
 
-        # Dask runs the highest priority first: the largest file.
-        futures = {
-            dask_client.submit(compress_file, entry[3], priority=len(entries) - rank, pure=False): entry
-            for rank, entry in enumerate(entries)
-        }
+    frame = pd.DataFrame([rows[str(p)] for p, _ in files if str(p) in rows] + [rows[m] for m in missing])
+    frame = frame.reindex(columns=list(COLUMNS))
+    frame["bytes"] = frame["bytes"].astype("Int64")
+    _write_report(frame, report)
+    return frame
+
+
+def _run(client, entries: list, previous: dict, manifest: Path, bar, failures: int) -> dict[str, dict]:
+    """Compress the files of ``entries`` on ``client``'s cluster; their report rows by input.
+
+    Each finished file's record goes into ``previous`` and onto the sidecar ``manifest`` at once.
+    """
+    from distributed import as_completed
+
+    rows = {}
+    # Dask runs the highest priority first: the largest file.
+    futures = {
+        client.submit(compress_file, entry[3], priority=len(entries) - rank, pure=False): entry
+        for rank, entry in enumerate(entries)
+    }
+    with open(manifest, "a") as sidecar:
         for future in as_completed(futures):
             found, output, key, job = futures.pop(future)
             try:
@@ -503,14 +521,7 @@ def batch(
                 sidecar.write(json.dumps(previous[key]) + "\n")
                 sidecar.flush()  # an interrupted batch keeps what it finished
             bar.update()
-    # The sidecar again with one line per output, however many runs appended to it.
-    write_atomic(manifest, "".join(json.dumps(r) + "\n" for r in previous.values()).encode())
-
-    frame = pd.DataFrame([rows[str(p)] for p, _ in files if str(p) in rows] + [rows[m] for m in missing])
-    frame = frame.reindex(columns=list(COLUMNS))
-    frame["bytes"] = frame["bytes"].astype("Int64")
-    _write_report(frame, report)
-    return frame
+    return rows
 
 
 def _size(path: str) -> int:
