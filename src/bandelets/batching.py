@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import write_atomic
+from .rd import MESH_SUFFIXES
 
 __all__ = [
     "COLUMNS",
@@ -70,7 +71,6 @@ COLUMNS = (
 )
 #: Inputs read as images; meshes are the suffixes of :data:`bandelets.rd.MESH_SUFFIXES`.
 IMAGE_SUFFIXES = (".png", ".npy")
-MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 #: The sidecar of finished files in the output folder (JSON lines).
 MANIFEST = ".bandelets-batch.jsonl"
 
