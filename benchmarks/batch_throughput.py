@@ -1,7 +1,7 @@
 """Throughput of ``bandelets batch`` on a local Dask cluster of 1 and of 2 worker processes.
 
-Writes ``--maps`` generated normal maps of ``--size`` (bump maps of different seeds, and a
-crease map every fourth, 16-bit PNG) to a temporary folder, then for each worker count runs
+Writes ``--maps`` generated normal maps of ``--size`` (mirrors and transposes of two bump maps
+and of the crease map, 16-bit PNG) to a temporary folder, then for each worker count runs
 :func:`bandelets.batch` on the folder into a fresh output folder. Each run makes its own
 ``LocalCluster``: its start, the workers' imports and numba cache loads are in the wall
 time, as a user sees it. Prints per worker count the wall time, files per second, the
@@ -29,11 +29,25 @@ import bandelets
 from bandelets.samples import bump_normal_map, crease_normal_map
 
 
+def _variant(normals: np.ndarray, i: int) -> np.ndarray:
+    """The ``i``-th of the 8 mirrors and transposes of a normal map, its vectors turned with it."""
+    if i & 1:
+        normals = normals[:, ::-1] * [-1, 1, 1]
+    if i & 2:
+        normals = normals[::-1] * [1, -1, 1]
+    if i & 4:
+        normals = normals.transpose(1, 0, 2)[..., [1, 0, 2]]
+    return normals
+
+
 def _maps(folder: Path, count: int, size: int) -> list[np.ndarray]:
+    """``count`` maps: the mirrors and transposes of two bump maps and of the crease map (a bump
+    map takes seconds to generate)."""
+    bases = [bump_normal_map(size, seed=0), bump_normal_map(size, seed=1), crease_normal_map(size)]
     pixels = []
     for i in range(count):
-        normals = crease_normal_map(size) if i % 4 == 3 else bump_normal_map(size, seed=i)
-        pixels.append(np.uint16(np.rint((normals + 1) / 2 * 65535)))
+        normals = _variant(bases[i % 3], i // 3)
+        pixels.append(np.ascontiguousarray(np.rint((normals + 1) / 2 * 65535), dtype=np.uint16))
         (folder / f"map{i:02d}.png").write_bytes(imagecodecs.png_encode(pixels[-1]))
     return pixels
 
@@ -64,9 +78,15 @@ def main() -> None:
         library.mkdir()
         pixels = _maps(library, args.maps, args.size)
         openjpeg = _openjpeg_seconds(pixels)
-        print(f"{args.maps} normal maps of {args.size} x {args.size}, {target}, {os.cpu_count()} cores")
-        print(f"OpenJPEG, one process: {openjpeg:.2f} s ({openjpeg / args.maps * 1e3:.0f} ms per map)")
-        print("workers  wall_s  files/s  speedup  file_s_sum  mean_bpp  load_before  load_after")
+        print(
+            f"{args.maps} normal maps of {args.size} x {args.size}, {target}, {os.cpu_count()} cores",
+            flush=True,
+        )
+        print(
+            f"OpenJPEG, one process: {openjpeg:.2f} s ({openjpeg / args.maps * 1e3:.0f} ms per map)",
+            flush=True,
+        )
+        print("workers  wall_s  files/s  speedup  file_s_sum  mean_bpp  load_before  load_after", flush=True)
         first = None
         for n in counts:
             load = os.getloadavg()[0]
@@ -80,10 +100,10 @@ def main() -> None:
             first = first or wall
             figures = f"{n:7d}  {wall:6.1f}  {args.maps / wall:7.3f}  {first / wall:7.2f}  "
             figures += f"{report.seconds.sum():10.1f}  {report.bpp.mean():8.3f}  "
-            print(f"{figures}{load:11.1f}  {os.getloadavg()[0]:10.1f}")
-            print(f"         time per file / OpenJPEG's: {wall / openjpeg:.0f}x")
+            print(f"{figures}{load:11.1f}  {os.getloadavg()[0]:10.1f}", flush=True)
+            print(f"         batch wall time / OpenJPEG's (one process): {wall / openjpeg:.0f}x", flush=True)
         openjpeg = _openjpeg_seconds(pixels)
-        print(f"OpenJPEG again after the runs: {openjpeg:.2f} s")
+        print(f"OpenJPEG again after the runs: {openjpeg:.2f} s", flush=True)
 
 
 if __name__ == "__main__":

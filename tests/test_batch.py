@@ -197,6 +197,18 @@ def test_bad_arguments_fail_before_any_work(tmp_path, library, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_parquet_report(tmp_path, library, threads_client):
+    pytest.importorskip("pyarrow")
+    report = tmp_path / "report.parquet"
+    options = {"threshold": THRESHOLD, "kind": "normal-map", "client": threads_client}
+    frame = batch(
+        [library / "a.png", library / "maps" / "corrupt.png"], tmp_path / "out", report=report, **options
+    )
+    on_disk = pd.read_parquet(report)
+    assert list(on_disk.columns) == list(COLUMNS) and list(on_disk.status) == ["ok", "failed"]
+    assert on_disk.bytes[0] == frame.bytes[0] == (tmp_path / "out" / "a.bdl").stat().st_size
+
+
 def test_parquet_needs_pyarrow(tmp_path, library, monkeypatch):
     import importlib.util
 
