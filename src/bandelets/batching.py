@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import glob
 import hashlib
+import importlib.util
 import io
 import json
 import logging
@@ -34,9 +35,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+import psutil
+from distributed import Client, LocalCluster, as_completed, get_worker
+from tqdm import tqdm
 
-from .files import write_atomic
+from .bitstream import FORMAT_VERSION, KINDS
+from .decoder import decode
+from .encoder import encode
+from .files import read_array, write_atomic
+from .memory import decoder_memory, encoder_memory
+from .metrics import bits_per_pixel, psnr, unit_vectors
 from .rd import MESH_SUFFIXES
+from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
+from .surfaces.metrics import hausdorff_psnr
 
 __all__ = [
     "COLUMNS",
@@ -163,8 +175,6 @@ def one_line_error(err: BaseException) -> str:
 
 
 def _worker_address() -> str:
-    from distributed import get_worker
-
     try:
         return get_worker().address
     except ValueError:  # called outside a worker
@@ -180,10 +190,6 @@ def _sha256(path: str) -> str:
 
 
 def _compress_image(job: Job) -> dict:
-    from .codec import decode, encode
-    from .files import read_array
-    from .metrics import bits_per_pixel, psnr
-
     array, depth = read_array(job.input, job.kind)
     data = encode(array, **job.target, kind=job.kind, depth=depth)
     _write(job.output, data)
@@ -197,9 +203,6 @@ def _compress_image(job: Job) -> dict:
 
 
 def _compress_mesh(job: Job) -> dict:
-    from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
-    from .surfaces.metrics import hausdorff_psnr
-
     mesh = load_mesh(job.input)
     data = encode_mesh(mesh, **job.target)
     _write(job.output, data)
@@ -218,8 +221,6 @@ def _write(path: str, data: bytes) -> None:
 
 def angular_errors_deg(reference: np.ndarray, decoded: np.ndarray) -> np.ndarray:
     """Angle in degrees between the unit vectors of two normal maps, per pixel, (H, W)."""
-    from .metrics import unit_vectors
-
     cosines = np.einsum("...c,...c->...", unit_vectors(reference), unit_vectors(decoded))
     return np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0)))
 
@@ -292,10 +293,8 @@ def _fixed_prefix(pattern: str) -> Path:
 
 def memory_estimate(path: Path, kind: str, target: dict) -> int:
     """Bytes a worker needs for ``path`` beyond its base, from the file's header and
-    :func:`bandelets.bitstream.encoder_memory` (0 if the header is unreadable: the worker
+    :func:`bandelets.memory.encoder_memory` (0 if the header is unreadable: the worker
     then fails on the file with the reason)."""
-    from .bitstream import decoder_memory, encoder_memory
-
     if kind == "mesh":
         side = 1024 if "bits_per_vertex" in target else 256
         return encoder_memory(side, side, 3) + _MESH_PER_BYTE * path.stat().st_size
@@ -341,8 +340,6 @@ def _check_report(report: Path, out: Path) -> None:
     if not report.parent.is_dir() and report.parent != out:  # the batch makes ``out``
         raise ValueError(f"{report}: folder {report.parent} does not exist")
     if suffix == ".parquet":
-        import importlib.util
-
         if importlib.util.find_spec("pyarrow") is None:
             raise ValueError(f"{report}: a Parquet report needs pyarrow (pip install pyarrow)")
 
@@ -429,10 +426,6 @@ def batch(
     ValueError
         Bad arguments, no input, or a report that cannot be written; never for a bad file.
     """
-    import pandas as pd
-
-    from .bitstream import FORMAT_VERSION, KINDS
-
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(KINDS)}")
     image_target, mesh_target = _targets(bpp, psnr, threshold, bits_per_vertex)
@@ -469,8 +462,6 @@ def batch(
         )
     entries.sort(key=lambda entry: -_size(entry[3].input))  # large files first
 
-    from tqdm import tqdm
-
     bar = tqdm(total=len(rows) + len(entries), unit="file", disable=not progress)
     bar.update(len(rows))
     failures = len(rows)
@@ -494,8 +485,6 @@ def _run(client, entries: list, previous: dict, manifest: Path, bar, failures: i
 
     Each finished file's record goes into ``previous`` and onto the sidecar ``manifest`` at once.
     """
-    from distributed import as_completed
-
     rows = {}
     # Dask runs the highest priority first: the largest file.
     futures = {
@@ -549,14 +538,10 @@ def _client(client, scheduler: str | None, workers: int | None, need: int):
     if client is not None:
         yield client
         return
-    from distributed import Client, LocalCluster
-
     if scheduler is not None:
         with Client(scheduler, timeout="10s") as remote:
             yield remote
         return
-    import psutil
-
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     total = psutil.virtual_memory().total
     # Dask pauses a worker at 80 % of its limit and restarts it at 95 %: the estimate stays below.
