@@ -43,6 +43,9 @@ def library(tmp_path_factory) -> Path:
 
     from bandelets.samples import crease_normal_map
 
+    # Compile (or load) the codec's kernels here first: the workers then load them from numba's
+    # cache instead of each compiling them again.
+    bandelets.decode(bandelets.encode(crease_normal_map(32), threshold=THRESHOLD, kind="normal-map"))
     root = tmp_path_factory.mktemp("library")
     for name, size in MAPS.items():
         _png(root / name, crease_normal_map(size))
