@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import shutil
 import struct
 import subprocess
 import sys
 import time
+import warnings
 import zlib
 from dataclasses import replace
 from pathlib import Path
@@ -19,9 +21,14 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
+from bandelets import cli, decoder, files, show
 from bandelets.bitstream import pack, unpack
 from bandelets.cli import main
-from bandelets.metrics import psnr
+from bandelets.files import SUFFIXES, from_samples, to_samples
+from bandelets.formats import read_exr, read_tiff, write_exr, write_tiff
+from bandelets.metrics import angular_error, psnr
+from bandelets.samples import crease_normal_map
+from bandelets.surfaces.codec import MESH_FORMATS
 
 
 def _gray(shape=(40, 56)) -> np.ndarray:
@@ -179,7 +186,7 @@ def test_rgba_png_drops_alpha_with_a_warning(tmp_path, capsys):
     alpha = np.full((32, 32, 1), 200, np.uint8)
     png = _write_png(tmp_path / "rgba.png", np.concatenate([rgb, alpha], -1))
     bdl = tmp_path / "rgba.bdl"
-    status, _, err = _run(capsys, "encode", png, bdl, "--threshold", "0.01")
+    status, _, err = _run(capsys, "encode", png, bdl, "--threshold", "0.01", "-q")  # -q: no summary
     assert status == 0
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("bandelets: warning:")
@@ -218,7 +225,7 @@ def test_npy_to_png_uses_16_bits(tmp_path, capsys, npy):
 def test_long_wavelets_give_no_spurious_warning(tmp_path, capsys, npy):
     path, _ = npy
     status, _, err = _run(
-        capsys, "encode", path, tmp_path / "o.bdl", "--wavelet", "db8", "--threshold", "0.05"
+        capsys, "encode", path, tmp_path / "o.bdl", "--wavelet", "db8", "--threshold", "0.05", "-q"
     )
     assert status == 0
     assert err == ""
@@ -426,3 +433,214 @@ def test_the_command_line_takes_the_formats_choices_without_loading_the_codec():
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
     assert done.stdout.strip() == "[]"
+
+
+def test_the_command_line_knows_the_file_formats():
+    assert set(cli.IMAGE_SUFFIXES) == set(SUFFIXES) | {".jpg", ".jpeg", ".webp"}
+    assert MESH_FORMATS == ("obj", "ply", "off")  # as _mesh_decode checks them
+
+
+def _cpu_seconds(argv: list[str]) -> tuple[float, subprocess.CompletedProcess]:
+    """CPU time (user + system) of ``python -m bandelets ARGV``: what the command costs, whatever
+    the load of the machine does to its wall time."""
+
+    env = dict(os.environ, PYTHONPATH=str(Path(bandelets.__file__).parents[1]))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run(
+        [sys.executable, "-m", "bandelets", *argv], capture_output=True, text=True, timeout=60, env=env
+    )
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), done
+
+
+@pytest.mark.parametrize(
+    ("argv", "limit"),
+    [
+        (["--help"], 0.3),
+        (["decode", "missing.bdl", "out.png"], 0.5),
+        (["encode", "missing.png", "out.bdl"], 0.5),
+        (["encode", "--bpp", "x", "a.png", "b.bdl"], 0.5),
+        (["show", "missing.bdl", "out.png"], 0.5),
+        (["mesh-encode", "missing.off", "out.bdl"], 0.5),
+    ],
+)
+def test_help_and_argument_errors_cost_little(tmp_path, argv, limit):
+    _cpu_seconds(argv)  # warm the caches
+    seconds, done = _cpu_seconds([str(tmp_path / a) if "." in a else a for a in argv])
+    assert done.returncode == (0 if argv == ["--help"] else 2), done.stderr
+    assert seconds < limit, f"bandelets {' '.join(argv)} took {seconds:.2f} s of CPU"
+
+
+# ---------------------------------------------------------------------------------------------
+# Summary lines, formats, normal maps.
+
+
+def _normal_png(tmp_path: Path, lengths: float = 1.0) -> tuple[Path, np.ndarray]:
+
+    pixels = to_samples(crease_normal_map(64) * lengths, "normal-map", 8)
+    return _write_png(tmp_path / "normals.png", pixels), from_samples(pixels, "normal-map", 8)
+
+
+def _numbers_of(line: str, after: str) -> float:
+    return float(line.split(after, 1)[1].split()[0].rstrip(","))
+
+
+def test_encode_prints_a_summary_measured_on_what_decode_writes(tmp_path, capsys):
+    png, values = _normal_png(tmp_path)
+    bdl, out = tmp_path / "n.bdl", tmp_path / "back.png"
+    status, _, err = _run(capsys, "encode", png, bdl, "--kind", "normal-map", "--bpp", "2")
+    assert status == 0
+    (line,) = err.splitlines()
+    assert line.startswith(f"{png} (64 x 64 x 3, 8-bit) -> {bdl}: {bdl.stat().st_size} bytes, ")
+    assert _numbers_of(line, "bytes, ") == pytest.approx(8 * bdl.stat().st_size / 64**2, abs=1e-3)
+    status, _, err = _run(capsys, "decode", bdl, out)
+    assert status == 0 and err.startswith(f"{bdl} -> {out}: 64 x 64 x 3, 8-bit, ") and err.endswith(" s\n")
+    decoded = _read_png(out).astype(float) / 255 * 2 - 1
+    assert _numbers_of(line, "PSNR ") == pytest.approx(psnr(values, decoded, "normal-map"), abs=0.005)
+    error = angular_error(values, decoded)
+    assert _numbers_of(line, "angle mean ") == pytest.approx(error.mean, abs=0.005)
+    assert _numbers_of(line, " p99 ") == pytest.approx(error.p99, abs=0.005)
+    assert "lengths" not in line  # an 8-bit map of unit vectors
+    assert _run(capsys, "encode", png, tmp_path / "q.bdl", "--kind", "normal-map", "-q")[2] == ""
+    assert _run(capsys, "decode", bdl, tmp_path / "q.png", "-q")[2] == ""
+
+
+def test_summary_names_vector_lengths_far_from_one(tmp_path, capsys):
+    png, values = _normal_png(tmp_path, lengths=0.8)
+    _, _, err = _run(capsys, "encode", png, tmp_path / "n.bdl", "--kind", "normal-map")
+    lengths = np.linalg.norm(values, axis=-1)
+    assert f"input vector lengths {lengths.min():.2f} to {lengths.max():.2f} (renormalised" in err
+
+
+def test_psnr_and_max_angle_targets_hold_on_the_8_bit_decode(tmp_path, capsys):
+    png, values = _normal_png(tmp_path)
+    for option, target in (("--psnr", 35.0), ("--max-angle", 3.0)):
+        bdl, out = tmp_path / "n.bdl", tmp_path / "n.png"
+        _ok(capsys, "encode", png, bdl, "--kind", "normal-map", option, target, "-f", "-q")
+        _ok(capsys, "decode", bdl, out, "-f", "-q")
+        decoded = _read_png(out).astype(float) / 255 * 2 - 1
+        if option == "--psnr":
+            assert psnr(values, decoded, "normal-map") >= target
+        else:
+            assert 0.8 * target < angular_error(values, decoded).p99 <= target
+
+
+@pytest.mark.parametrize(
+    ("suffix", "dtype"),
+    [(".tif", np.uint8), (".tiff", np.uint16), (".tif", np.float32), (".exr", np.float32)],
+)
+def test_tiff_and_exr_round_trips_keep_depth_and_type(tmp_path, capsys, suffix, dtype):
+
+    normals = crease_normal_map(32)
+    source = tmp_path / f"n{suffix}"
+    if suffix == ".exr":
+        write_exr(str(source), normals)
+    else:
+        floats = dtype == np.float32
+        source.write_bytes(
+            write_tiff(
+                normals.astype(dtype)
+                if floats
+                else to_samples(normals, "normal-map", 8 * np.dtype(dtype).itemsize)
+            )
+        )
+    bdl, out = tmp_path / "n.bdl", tmp_path / f"back{suffix}"
+    _ok(capsys, "encode", source, bdl, "--kind", "normal-map", "--bpp", "3", "-q")
+    depth = unpack(bdl.read_bytes())[0].depth
+    assert depth == (0 if dtype == np.float32 else 8 * np.dtype(dtype).itemsize)
+    _ok(capsys, "decode", bdl, out, "-q")
+    back = read_exr(out) if suffix == ".exr" else read_tiff(out)[0]
+    assert back.dtype == dtype and back.shape == (32, 32, 3)
+    decoded = back if dtype == np.float32 else back / np.iinfo(dtype).max * 2 - 1
+    assert angular_error(normals, decoded).mean < 2
+
+
+def test_lossy_inputs_and_wrong_output_names_are_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    png, _ = _normal_png(tmp_path)
+    jpeg = tmp_path / "n.jpg"
+    jpeg.write_bytes(b"\xff\xd8\xff")
+    status, _, err = _run(capsys, "encode", jpeg, tmp_path / "n.bdl")
+    assert status == 2 and "JPEG inputs are refused" in err
+    status, _, err = _run(capsys, "encode", png, tmp_path / "b.png")
+    assert status == 2 and "name it b.bdl" in err and not (tmp_path / "b.png").exists()
+    bdl = tmp_path / "n.bdl"
+    _ok(capsys, "encode", png, bdl, "--kind", "normal-map", "-q")
+
+    def no_decoding(*args, **kwargs):
+        raise AssertionError("decoded before checking the output")
+
+    monkeypatch.setattr(decoder, "decode_parsed", no_decoding)
+    monkeypatch.setattr(decoder, "decode", no_decoding)
+    monkeypatch.setattr(show, "geometry_figure", no_decoding)
+    for command, output, words in (
+        ("decode", "out.jpg", "unsupported output format .jpg"),
+        ("show", "o.jpg", "name it o.png"),
+    ):
+        status, _, err = _run(capsys, command, bdl, tmp_path / output)
+        assert status == 2 and words in err and not (tmp_path / output).exists()
+    assert "OpenEXR" in subprocess.run(
+        [sys.executable, "-m", "bandelets", "encode", "--help"], capture_output=True, text=True, timeout=60
+    ).stdout.replace("\n", " ")
+
+
+def test_max_memory_option(tmp_path, capsys):
+    png, _ = _normal_png(tmp_path)
+    bdl = tmp_path / "n.bdl"
+    status, _, err = _run(capsys, "encode", png, bdl, "--max-memory", "1M")
+    assert status == 2 and "above the limit of 1 MiB" in err and not bdl.exists()
+    _ok(capsys, "encode", png, bdl, "--max-memory", "1G", "-q")
+    status, _, err = _run(capsys, "decode", bdl, tmp_path / "o.png", "--max-memory", "0.5")
+    assert status == 2 and "above the limit of 0 MiB" in err
+    status, _, err = _run(capsys, "decode", bdl, tmp_path / "o.png", "--max-memory", "lots")
+    assert status == 2 and "512M or 4G" in err
+
+
+def test_xy_normal_maps_decode_to_their_layout(tmp_path, capsys):
+
+    normals = crease_normal_map(32)
+    two = tmp_path / "xy.npy"
+    np.save(two, normals[..., :2])
+    _ok(capsys, "encode", two, tmp_path / "xy.bdl", "--kind", "normal-map", "-q")
+    assert json.loads(_ok(capsys, "info", tmp_path / "xy.bdl"))["layout"] == "xy"
+    _ok(capsys, "decode", tmp_path / "xy.bdl", tmp_path / "xy-back.npy", "-q")
+    assert np.load(tmp_path / "xy-back.npy").shape == (32, 32, 2)
+    # RGB with ambient occlusion in blue, as BC5-style maps are shipped.
+    pixels = np.rint((normals + 1) / 2 * 255).astype(np.uint8)
+    pixels[..., 2] = 77
+    png = _write_png(tmp_path / "rg.png", pixels)
+    _ok(capsys, "encode", png, tmp_path / "rg.bdl", "--kind", "normal-map", "--xy", "--bpp", "3", "-q")
+    _ok(capsys, "decode", tmp_path / "rg.bdl", tmp_path / "rg-back.png", "-q")
+    back = _read_png(tmp_path / "rg-back.png").astype(float) / 255 * 2 - 1
+    assert back.shape == (32, 32, 3)
+    assert angular_error(normals, back).mean < 1.5
+    status, _, err = _run(capsys, "encode", png, tmp_path / "x.bdl", "--xy")
+    assert status == 2 and "normal maps only" in err
+
+
+def test_integer_npy_normal_maps_are_samples(tmp_path, capsys):
+
+    normals = crease_normal_map(32)
+    np.save(tmp_path / "u8.npy", np.rint((normals + 1) / 2 * 255).astype(np.uint8))
+    _ok(
+        capsys, "encode", tmp_path / "u8.npy", tmp_path / "u8.bdl", "--kind", "normal-map", "--bpp", "3", "-q"
+    )
+    decoded = bandelets.decode((tmp_path / "u8.bdl").read_bytes())
+    assert angular_error(normals, decoded).mean < 1.5
+    np.save(tmp_path / "i32.npy", np.zeros((8, 8, 3), np.int32))
+    status, _, err = _run(capsys, "encode", tmp_path / "i32.npy", tmp_path / "i.bdl", "--kind", "normal-map")
+    assert status == 2 and "int32 values has no agreed scale" in err
+
+
+def test_library_warnings_are_not_ours_to_show(tmp_path, capsys, monkeypatch, npy):
+
+    read = files.read_array
+
+    def noisy(*args):
+        warnings.warn_explicit(
+            "The TBB threading layer requires TBB", UserWarning, "numba/np/ufunc/parallel.py", 1
+        )
+        return read(*args)
+
+    monkeypatch.setattr(files, "read_array", noisy)
+    status, _, err = _run(capsys, "encode", npy[0], tmp_path / "o.bdl", "-q")
+    assert status == 0 and err == ""

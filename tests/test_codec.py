@@ -7,8 +7,9 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import decoder, encoder, metrics
+from bandelets import encoder, metrics
 from bandelets.bitstream import WAVELETS, unpack
+from bandelets.files import as_read, from_samples, to_samples
 from bandelets.lagrangian import LAMBDA
 from bandelets.options import EncodeOptions
 from bandelets.wavelets import padded_shape, subband_slices
@@ -217,7 +218,7 @@ def test_normal_map_facing_up_is_coded_as_two_channels(crease_map):
 
 def test_rebuilt_z_is_zero_outside_the_unit_disc():
     xy = np.array([[[0.6, 0.0], [0.9, 0.6]]])
-    np.testing.assert_allclose(decoder.rebuilt_z(xy)[..., 0], [[0.8, 0.0]])
+    np.testing.assert_allclose(metrics.with_z(xy)[..., 2], [[0.8, 0.0]])
 
 
 def test_auto_wavelet_keeps_the_better_file(crease_map):
@@ -297,7 +298,11 @@ GOOD = np.random.default_rng(11).random((32, 32))
         (np.ones((2, 2, 2, 2, 2)), dict(bpp=1), "shape"),
         (np.ones((8, 8, 5)), dict(bpp=1), "channels"),
         (np.ones(16), dict(bpp=1), "shape"),
-        (GOOD[..., None].repeat(2, -1), dict(bpp=1, kind="normal-map"), "3 channels"),
+        (GOOD[..., None].repeat(4, -1), dict(bpp=1, kind="normal-map"), "3 channels"),
+        (GOOD[..., None].repeat(2, -1), dict(bpp=1, kind="normal-map", xy=True), "3 channels"),
+        (GOOD[..., None].repeat(3, -1), dict(bpp=1, xy=True), "normal maps only"),
+        (np.ones((8, 8, 3), np.int32), dict(bpp=1, kind="normal-map"), "uint8 / uint16"),
+        (np.ones((8, 8, 3), np.uint8), dict(bpp=1, kind="normal-map", depth=16), "depth 8"),
         (GOOD[..., None].repeat(4, -1), dict(bpp=1, kind="geometry-image"), "3 channels"),
         ("not an image", dict(bpp=1), "numeric"),
         (GOOD, dict(bpp=0), "bpp"),
@@ -351,3 +356,66 @@ def test_files_are_identical_run_after_run_and_on_any_number_of_threads(crease_m
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     assert files[0] == files[1] == files[2]
+
+
+def test_max_angle_target_holds_on_the_99th_percentile(crease_map):
+    target = 4.0
+    data = bandelets.encode(crease_map, max_angle=target, kind="normal-map")
+    error = metrics.angular_error(crease_map, bandelets.decode(data))
+    assert 0.8 * target < error.p99 <= target
+    tighter = bandelets.encode(crease_map, max_angle=target / 2, kind="normal-map")
+    assert len(tighter) > len(data)
+    with pytest.raises(ValueError, match="normal maps only"):
+        bandelets.encode(crease_map, max_angle=target)
+    with pytest.raises(ValueError, match="from 0 to 180"):
+        bandelets.encode(crease_map, max_angle=-1.0, kind="normal-map")
+
+
+def test_psnr_target_holds_at_the_source_depth(crease_map):
+    """The PSNR of what the user gets: the decoded map written as 8-bit samples."""
+    source = as_read(crease_map, "normal-map", 8)  # an 8-bit PNG's values
+    decoded = bandelets.decode(bandelets.encode(source, psnr=36.0, kind="normal-map", depth=8))
+    assert metrics.psnr(source, as_read(decoded, "normal-map", 8), "normal-map") >= 36.0
+
+
+def test_integer_normal_maps_are_samples(crease_map):
+    """uint8 samples (an image's pixels) are mapped as PNG samples, and their depth recorded."""
+    pixels = to_samples(crease_map, "normal-map", 8)
+    data = bandelets.encode(pixels, threshold=0.02, kind="normal-map")
+    assert unpack(data)[0].depth == 8
+    same = bandelets.encode(from_samples(pixels, "normal-map", 8), threshold=0.02, kind="normal-map", depth=8)
+    assert data == same
+    assert metrics.angular_error(crease_map, bandelets.decode(data)).mean < 2
+
+
+@pytest.mark.parametrize("layout", ["xy", "rg"])
+def test_xy_normal_maps_decode_to_their_layout(crease_map, layout):
+    xy = crease_map[..., :2]
+    given = xy if layout == "xy" else np.concatenate([xy, np.full(xy.shape[:2] + (1,), 0.3)], axis=-1)
+    data = bandelets.encode(given, threshold=0.02, kind="normal-map", xy=layout == "rg")
+    header = unpack(data)[0]
+    assert (header.channels, header.layout) == (2, layout)
+    decoded = bandelets.decode(data)
+    assert decoded.shape == given.shape
+    assert metrics.angular_error(crease_map, decoded).mean < 1.5
+    if layout == "rg":  # the unused blue is not coded: the decoder fills in the rebuilt z
+        np.testing.assert_allclose(decoded, metrics.with_z(decoded[..., :2]), atol=1e-12)
+
+
+def test_progress_line_names_every_stage(crease_map, capsys):
+    bandelets.encode(crease_map, psnr=40, kind="normal-map", progress=True)
+    err = capsys.readouterr().err
+    # tqdm redraws at most every 0.1 s: not every step shows.
+    assert "rate control: " in err and "restoration search: " in err and "T=" in err
+    assert "rate control: 3" in err  # counted across the restoration searches
+    bandelets.encode(crease_map, psnr=40, kind="normal-map")
+    assert capsys.readouterr().err == ""
+
+
+def test_xy_beyond_the_rim_are_coded_as_given(crease_map):
+    """x, y beyond the unit disc (z rebuilt as 0, as 8-bit maps have) are not pulled onto the rim,
+    where they would decode just inside it, tilted by the steep z."""
+    xy = crease_map[..., :2].copy()
+    xy[:8] = [0.8, 0.7]  # |x, y| = 1.06
+    decoded = bandelets.decode(bandelets.encode(xy, threshold=2e-4, kind="normal-map", restore=False))
+    assert metrics.angular_error(xy[:8], decoded[:8]).max < 0.1

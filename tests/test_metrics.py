@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.metrics import bd_psnr, bits_per_pixel, peak, psnr, unit_vectors
+from bandelets.metrics import angular_error, bd_psnr, bits_per_pixel, peak, psnr, unit_vectors, with_z
 
 
 def test_psnr_of_a_uniform_error(rng):
@@ -94,3 +94,27 @@ def test_bd_psnr_integrates_over_the_common_rate_range():
 def test_bd_psnr_without_overlap_is_a_value_error():
     with pytest.raises(ValueError, match="overlap"):
         bd_psnr([1, 2, 3, 4], PSNRS[:4], [5, 6, 7, 8], PSNRS[:4])
+
+
+def test_angular_error_of_known_rotations(rng):
+    normals = unit_vectors(rng.normal(size=(20, 10, 3)))
+    angles = np.full((20, 10), 2.0)
+    angles[0, 0] = 30.0  # one pixel far off: the max, not the 99th percentile (1 of 200)
+    # Turn each normal by its angle about an axis perpendicular to it.
+    axis = unit_vectors(np.cross(normals, rng.normal(size=normals.shape)))
+    t = np.radians(angles)[..., None]
+    turned = normals * np.cos(t) + np.cross(axis, normals) * np.sin(t)
+    error = angular_error(normals, 3.0 * turned)  # lengths do not count
+    assert error.max == pytest.approx(30.0, abs=1e-9)
+    assert error.p99 == pytest.approx(np.percentile(angles, 99), abs=1e-9)
+    assert error.mean == pytest.approx(angles.mean(), abs=1e-9)
+    assert angular_error(normals, normals).max < 1e-5  # atan2: no arccos noise near 0
+
+
+def test_angular_error_of_xy_maps_rebuilds_z():
+    xy = np.array([[[0.6, 0.0], [0.0, 0.0]]])
+    assert np.allclose(with_z(xy), [[[0.6, 0.0, 0.8], [0.0, 0.0, 1.0]]])
+    error = angular_error(xy, [[[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]])
+    assert error.max == pytest.approx(np.degrees(np.arcsin(0.6)))
+    with pytest.raises(ValueError, match="one shape"):
+        angular_error(np.ones((2, 2, 3)), np.ones((2, 3, 3)))

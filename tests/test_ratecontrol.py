@@ -36,3 +36,22 @@ def test_for_size_meets_the_target_in_few_encodings(rng):
     result = ratecontrol.for_size(encode_at, target, t_max=1e3, model=model)
     assert (1 - ratecontrol.SIZE_TOLERANCE) * target <= len(result.data) <= target
     assert len(calls) <= 3
+
+
+def test_for_quality_stops_on_a_plateau():
+    """Above some T every file is the smallest one (all coefficients zero): once it comes back the
+    search stops instead of walking the plateau for its 40 steps."""
+    calls = []
+
+    def encode_at(t: float):
+        calls.append(t)
+        size = 87 if t > 0.3 else int(100 / t)  # the smallest file from T = 0.3 on
+        return SimpleNamespace(data=bytes(size), threshold=t)
+
+    def quality(result) -> float:
+        return 38.89 if len(result.data) == 87 else 40 - 0.01 * len(result.data) / 10
+
+    # Every file above the target's PSNR: the smallest file is the answer.
+    best = ratecontrol.for_quality(encode_at, quality, 30.0, t_max=1.0, t_guess=0.05)
+    assert len(best.data) == 87
+    assert len(calls) < 10

@@ -39,7 +39,14 @@ def test_rd_on_a_tiny_input_writes_csv_png_and_table(tmp_path, capsys):
     )
     assert status == 0, err
     rows = _rows(tmp_path / "rd.csv")
-    assert list(rows[0]) == ["input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s"]
+    assert list(rows[0]) == ["input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s"] + [
+        "angle_mean",
+        "angle_p99",
+        "angle_max",
+    ]
+    for row in rows:  # a normal map: its angular error, in degrees, ordered
+        assert 0 < float(row["angle_mean"]) <= float(row["angle_p99"]) <= float(row["angle_max"]) < 90
+    assert "p99 deg" in out
     assert [(r["codec"], float(r["target"])) for r in rows] == [
         (c, t) for c in ("bandelet", "wavelet", "jpeg2000") for t in (2.0, 4.0)
     ]

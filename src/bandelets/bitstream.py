@@ -10,7 +10,8 @@ Layout (little endian)::
     7       1     wavelet: WAVELET_CODES
     8       1     wavelet levels
     9       1     channels coded (1 to 4; a normal map: 3, or 2 when z is rebuilt, see below)
-    10      1     source sample depth: 0 float, 8 or 16 (PNG bits, for decoding back to PNG)
+    10      1     source: sample depth 0 float, 8 or 16 (bits of PNG or TIFF samples, for decoding
+                  back to them), plus 64 times the LAYOUT_CODES of a normal map's source
     11      1     1D transform along the directions: TRANSFORM_1D_CODES (0 haar, 1 alpert2)
     12      4     height
     16      4     width
@@ -32,6 +33,12 @@ the channel count, weight :data:`NORMAL_MAP_WEIGHT`: no header field) and lets
 files with local frames be restored. Version 6 fixed the basis of Alpert's multiwavelet by
 construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
 rotation depended on the CPU's LAPACK kernels). This build reads version 6 only.
+
+The layout of a normal map's source, which the decoder returns (no effect on the coding):
+``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
+only R and G were normal components (a BC5-style map whose blue holds something else, such as
+ambient occlusion): the decoder returns ``x, y, z``. The layouts other than ``xyz`` were added
+within version 6: a file of layout ``xyz`` is read by every version 6 decoder.
 
 Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
 
@@ -65,11 +72,13 @@ __all__ = [
     "WAVELET_CODES",
     "TRANSFORM_1D_CODES",
     "EXTENSION_CODES",
+    "LAYOUT_CODES",
     "KINDS",
     "TRANSFORMS",
     "WAVELETS",
     "TRANSFORMS_1D",
     "EXTENSIONS",
+    "LAYOUTS",
     "Kind",
     "Wavelet",
     "Transform1D",
@@ -104,16 +113,25 @@ WAVELET_CODES = {"cdf97": 0, "haar": 1, "db2": 2, "db4": 3, "db6": 4, "db8": 5}
 TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
 #: Boundary extensions of ``cdf97`` (geometry images only).
 EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
-KINDS, TRANSFORMS, WAVELETS, TRANSFORMS_1D, EXTENSIONS = map(
-    tuple, (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
+#: Layouts of a normal map's source (see above): ``xy`` and ``rg`` are coded as two channels.
+LAYOUT_CODES = {"xyz": 0, "xy": 1, "rg": 2}
+KINDS, TRANSFORMS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
+    tuple, (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES, LAYOUT_CODES)
 )
 # The same names as types, for signatures (tests/test_bitstream.py checks they agree).
 Kind = Literal["image", "normal-map", "geometry-image"]
 Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8"]
 Transform1D = Literal["haar", "alpert2"]
-_KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF = (
+_KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF, _LAYOUT_OF = (
     {code: name for name, code in codes.items()}
-    for codes in (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES)
+    for codes in (
+        KIND_CODES,
+        TRANSFORM_CODES,
+        WAVELET_CODES,
+        TRANSFORM_1D_CODES,
+        EXTENSION_CODES,
+        LAYOUT_CODES,
+    )
 )
 
 #: The encoder's defaults (:class:`bandelets.options.EncodeOptions`): the wavelet, the 1D transform,
@@ -172,6 +190,8 @@ class Header:
     normal_weight: float = 1.0
     #: Iterations of :func:`bandelets.restoration.iterate` the decoder runs (0: none).
     restoration: int = 0
+    #: Layout of a normal map's source (:data:`LAYOUTS`), which the decoder returns.
+    layout: str = "xyz"
 
 
 def implied_options(kind: str, channels: int) -> dict:
@@ -205,7 +225,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         WAVELET_CODES[header.wavelet],
         header.levels,
         header.channels,
-        header.depth,
+        header.depth + 64 * LAYOUT_CODES[header.layout],
         TRANSFORM_1D_CODES[header.transform_1d],
         header.height,
         header.width,
@@ -213,6 +233,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         *(len(s) for s in streams),
         header.restoration,
     )
+    if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
+        raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.kind != "geometry-image":  # its options are not stored, so they must be the implied ones
         defaults = {
             "extension": Header.extension,
@@ -267,6 +289,8 @@ def unpack(
     kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
     height, width, threshold = fields[9:12]
     lengths, restoration = fields[12:15], fields[15]
+    depth, layout_code = depth % 64, depth // 64
+    layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
     wavelet, along = _WAVELET_OF.get(wavelet_code), _TRANSFORM_1D_OF.get(along_code)
     start = _FIXED.size + (_GEOMETRY.size if kind == "geometry-image" else 0)
@@ -280,6 +304,10 @@ def unpack(
         (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
         (1 <= channels <= 4, f"bad channel count {channels}"),
         (depth in (0, 8, 16), f"bad sample depth {depth}"),
+        (
+            layout == "xyz" or (layout is not None and kind == "normal-map" and channels == 2),
+            f"bad layout code {layout_code} for a {kind} of {channels} channels",
+        ),
         (along is not None, f"unknown 1D transform code {along_code}"),
         (
             1 <= height <= max_side and 1 <= width <= max_side,
@@ -315,6 +343,7 @@ def unpack(
         transform_1d=along,
         **options,
         restoration=restoration,
+        layout=layout,
     )
     streams = []
     for n in lengths:

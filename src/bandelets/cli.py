@@ -14,6 +14,7 @@ import contextlib
 import json
 import os
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -29,6 +30,10 @@ from .bitstream import (
 )
 
 __all__ = ["main"]
+
+FORMATS = "PNG (8/16-bit), TIFF (8/16-bit, float), OpenEXR (.exr) or .npy"
+# bandelets.files.SUFFIXES and the refused ones: not names for a .bdl file.
+IMAGE_SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff", ".jpg", ".jpeg", ".webp")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -49,19 +54,41 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version="bandelets 0.1.0")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("encode", help="compress a PNG or .npy file into a .bdl file")
-    p.add_argument("input", help="PNG (8/16-bit gray, RGB, RGBA) or .npy (H x W or H x W x C floats)")
+    p = sub.add_parser(
+        "encode",
+        help=f"compress an image ({FORMATS}) into a .bdl file",
+        description=f"Compress an image into a .bdl file. Inputs: {FORMATS}; gray, RGB, RGBA (alpha "
+        "dropped), or H x W x C arrays. JPEG and WebP inputs are refused (lossy: their artefacts "
+        "would be coded as detail). Prints a summary line on stderr (-q: none).",
+    )
+    p.add_argument("input", help=f"{FORMATS}: integer samples map to [0, 1] ([-1, 1] for normal maps)")
     p.add_argument("output", help="the .bdl file to write")
     target = p.add_mutually_exclusive_group()
     target.add_argument("--bpp", type=float, help="target rate in bits per pixel (default 1)")
     target.add_argument("--threshold", type=float, help="quantization threshold T")
-    target.add_argument("--psnr", type=float, help="target PSNR in dB")
+    target.add_argument(
+        "--psnr", type=float, help="target PSNR in dB, of the decoded image at the input's bit depth"
+    )
+    target.add_argument(
+        "--max-angle",
+        type=float,
+        metavar="DEG",
+        help="normal maps: the largest 99th percentile of the angle between input and decoded normals, "
+        "in degrees (the tail, where creases show artefacts; the mean follows --psnr)",
+    )
     p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
     p.add_argument(
         "--kind",
         choices=KINDS,
         default="image",
-        help="image (default), normal-map (RGB vectors, renormalised) or geometry-image",
+        help="image (default: values kept as they are), normal-map (RGB vectors, renormalised to unit "
+        "length: use image to keep their lengths) or geometry-image",
+    )
+    p.add_argument(
+        "--xy",
+        action="store_true",
+        help="normal maps: code red and green as x, y and rebuild z (BC5-style maps whose blue is unused "
+        "or holds something else); a two-channel input always is x, y. Decodes to the layout given",
     )
     p.add_argument(
         "--wavelet",
@@ -81,17 +108,21 @@ def _build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="decode by plain dequantization: no restoration by the decoder (faster to encode and decode)",
     )
-    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+    _common(p)
 
-    p = sub.add_parser("decode", help="decode a .bdl file into PNG or .npy")
+    p = sub.add_parser("decode", help=f"decode a .bdl file into {FORMATS}")
     p.add_argument("input")
-    p.add_argument("output", help=".png (the source's bit depth) or .npy (float32)")
+    p.add_argument(
+        "output",
+        help=".png or .tif (the source's bit depth: 8, 16, or 16-bit PNG and float TIFF for float "
+        "sources), .exr or .npy (float32)",
+    )
     p.add_argument(
         "--no-restore",
         action="store_true",
         help="skip the restoration the file asks for: a faster decode of lower quality (a preview)",
     )
-    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+    _common(p)
 
     p = sub.add_parser("info", help="print what a .bdl file holds, as one JSON object")
     p.add_argument("input")
@@ -202,6 +233,36 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _memory(text: str) -> int:
+    """Bytes of a ``--max-memory`` value: MiB, or a number with a K, M or G suffix."""
+    scale = {"K": 2**10, "M": 2**20, "G": 2**30}.get(text[-1:].upper())
+    try:
+        value = float(text[:-1] if scale else text) * (scale or 2**20)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a size such as 512M or 4G, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"the memory limit must be positive, got {text!r}")
+    return int(value)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    """Options of encode and decode besides their own."""
+    p.add_argument(
+        "--max-memory",
+        type=_memory,
+        default=2 * 2**30,
+        metavar="SIZE",
+        help="refuse an image whose coding would need more memory (MiB, or with K, M, G; default 2G)",
+    )
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary line on stderr")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
+
+
+def _check_input(path: str) -> None:
+    if not Path(path).is_file():
+        raise ValueError(f"{path}: no such file")
+
+
 def _check_output(input_path: str, output: str, force: bool) -> None:
     out = Path(output)
     if out.exists() and Path(input_path).exists() and os.path.samefile(input_path, out):
@@ -213,38 +274,64 @@ def _check_output(input_path: str, output: str, force: bool) -> None:
 
 
 def _encode(args) -> None:
-    from .encoder import encode
-    from .files import read_array, write_atomic
-
+    _check_input(args.input)
     _check_output(args.input, args.output, args.force)
+    if Path(args.output).suffix.lower() in IMAGE_SUFFIXES:
+        raise ValueError(f"{args.output}: encode writes a .bdl file; name it {Path(args.output).stem}.bdl")
+    start = time.perf_counter()
+    from .files import read_array
+
     array, depth = read_array(args.input, args.kind)
-    target = {"bpp": args.bpp, "threshold": args.threshold, "psnr": args.psnr}
+    from .encoder import encode_with_stats
+    from .files import write_atomic
+    from .options import EncodeOptions
+
+    target = {"bpp": args.bpp, "threshold": args.threshold, "psnr": args.psnr, "max_angle": args.max_angle}
     if all(v is None for v in target.values()):
         target["bpp"] = 1.0
-    data = encode(
-        array,
-        **target,
+    options = EncodeOptions(
         transform=args.transform,
         kind=args.kind,
         wavelet=args.wavelet,
         transform_1d=args.transform_1d,
         depth=depth,
         restore=not args.no_restore,
-        progress=sys.stderr.isatty(),
+        progress=sys.stderr.isatty() and not args.quiet,
+        max_memory=args.max_memory,
+        xy=args.xy,
     )
-    write_atomic(args.output, data)
+    encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
+    write_atomic(args.output, encoded.data)
+    if not args.quiet:
+        from .summary import encode_summary
+
+        elapsed = time.perf_counter() - start
+        print(
+            encode_summary(args.input, args.output, array, depth, args.kind, args.xy, encoded, elapsed),
+            file=sys.stderr,
+        )
 
 
 def _decode(args) -> None:
+    _check_input(args.input)
+    _check_output(args.input, args.output, args.force)
+    from .files import check_suffix
+
+    check_suffix(args.output, "output")
+    start = time.perf_counter()
     from .bitstream import unpack
     from .decoder import decode_parsed
     from .files import write_array
 
-    _check_output(args.input, args.output, args.force)
     with _about(args.input):
         header, streams = unpack(_read_bdl(args.input))
-        decoded = decode_parsed(header, streams, restore=not args.no_restore)
+        decoded = decode_parsed(header, streams, restore=not args.no_restore, max_memory=args.max_memory)
     write_array(args.output, decoded, header.kind, header.depth)
+    if not args.quiet:
+        from .summary import decode_summary
+
+        elapsed = time.perf_counter() - start
+        print(decode_summary(args.input, args.output, decoded, header, elapsed), file=sys.stderr)
 
 
 @contextlib.contextmanager
@@ -265,6 +352,7 @@ def _read_bdl(path: str) -> bytes:
 
 
 def _info(args) -> None:
+    _check_input(args.input)
     from .bitstream import FORMAT_VERSION, unpack
     from .metrics import bits_per_pixel
 
@@ -294,6 +382,8 @@ def _info(args) -> None:
     }
     if header.kind == "geometry-image":
         info["extension"] = header.extension
+    if header.kind == "normal-map":
+        info["layout"] = header.layout
     if header.kind == "geometry-image" or header.frames:
         info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))
@@ -365,47 +455,54 @@ def _rd(args) -> None:
 
 
 def _show(args) -> None:
+    _check_input(args.input)
+    _check_output(args.input, args.output, args.force)
+    if Path(args.output).suffix.lower() != ".png":
+        raise ValueError(f"{args.output}: show draws a PNG; name it {Path(args.output).stem}.png")
     from .show import geometry_figure
 
-    _check_output(args.input, args.output, args.force)
     with _about(args.input):
         geometry_figure(_read_bdl(args.input), Path(args.output))
 
 
 def _mesh_encode(args) -> None:
+    _check_input(args.input)
     from .files import write_atomic
     from .surfaces.codec import encode_mesh, load_mesh
 
     _check_output(args.input, args.output, args.force)
-    data = encode_mesh(
-        load_mesh(args.input),
-        size=args.size,
-        bpp=args.bpp,
-        bits_per_vertex=args.bits_per_vertex,
-        n_bytes=args.bytes,
-        transform=args.transform,
-        frames=not args.no_frames,
-        normal_weight=args.normal_weight,
-        extension=args.extension,
-        restore=args.restore,
-    )
+    with _about(args.input):  # the mesh's checks name what is wrong, not which file
+        data = encode_mesh(
+            load_mesh(args.input),
+            size=args.size,
+            bpp=args.bpp,
+            bits_per_vertex=args.bits_per_vertex,
+            n_bytes=args.bytes,
+            transform=args.transform,
+            frames=not args.no_frames,
+            normal_weight=args.normal_weight,
+            extension=args.extension,
+            restore=args.restore,
+        )
     write_atomic(args.output, data)
 
 
 def _mesh_decode(args) -> None:
-    from .files import write_atomic
-    from .surfaces.codec import MESH_FORMATS, decode_mesh, mesh_bytes
-
+    _check_input(args.input)
     _check_output(args.input, args.output, args.force)
     file_type = Path(args.output).suffix.lower().lstrip(".")
-    if file_type not in MESH_FORMATS:
+    if file_type not in ("obj", "ply", "off"):  # bandelets.surfaces.codec.MESH_FORMATS
         raise ValueError(f"{args.output}: unsupported mesh format; use .obj, .ply or .off")
+    from .files import write_atomic
+    from .surfaces.codec import decode_mesh, mesh_bytes
+
     with _about(args.input):
         mesh = decode_mesh(_read_bdl(args.input))
     write_atomic(args.output, mesh_bytes(mesh, file_type))
 
 
 def _geometry_image(args) -> None:
+    _check_input(args.input)
     from .files import write_array
     from .surfaces.codec import load_mesh, make_geometry_image
 
@@ -414,7 +511,8 @@ def _geometry_image(args) -> None:
         _check_output(args.input, output, args.force)
         if Path(output).suffix.lower() not in suffixes:
             raise ValueError(f"{output}: unsupported output format; use {' or '.join(suffixes)}")
-    image = make_geometry_image(load_mesh(args.input), args.size)
+    with _about(args.input):
+        image = make_geometry_image(load_mesh(args.input), args.size)
     write_array(args.output, image.positions, "geometry-image", 0)
     if args.normals:
         write_array(args.normals, image.normals, "normal-map", 16)
@@ -471,6 +569,8 @@ def main(argv: list[str] | None = None) -> int:
             print("bandelets: interrupted", file=sys.stderr)
             return 130
         finally:
-            for w in caught:
-                print(f"bandelets: warning: {w.message}", file=sys.stderr)
+            ours = Path(__file__).resolve().parent
+            for w in caught:  # only ours: a library's notice (numba's threading layer) is not news
+                if Path(w.filename).resolve().is_relative_to(ours):
+                    print(f"bandelets: warning: {w.message}", file=sys.stderr)
     return 0

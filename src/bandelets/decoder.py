@@ -28,7 +28,6 @@ __all__ = [
     "restorations",
     "channel_transforms",
     "decoded_image",
-    "rebuilt_z",
 ]
 
 
@@ -167,12 +166,7 @@ def decoded_image(channels, header: Header) -> np.ndarray:
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
         if header.channels == 2:
-            out = np.concatenate([out, rebuilt_z(out)], axis=-1)
-        out = metrics.unit_vectors(out)
+            out = metrics.with_z(out)
+        # Returned in the layout the source had (bandelets.bitstream.LAYOUTS).
+        out = metrics.unit_vectors(out)[..., : 2 if header.layout == "xy" else 3]
     return out[..., 0] if header.channels == 1 else out
-
-
-def rebuilt_z(xy: np.ndarray) -> np.ndarray:
-    """``z = sqrt(1 - x^2 - y^2)`` (0 where the decoded ``x, y`` lie outside the unit disc), shape
-    (H, W, 1), of decoded normals ``xy`` of shape (H, W, 2)."""
-    return np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))

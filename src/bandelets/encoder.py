@@ -11,7 +11,7 @@ from typing import Literal
 
 import numpy as np
 
-from . import frames, metrics, ratecontrol
+from . import frames, metrics, normalmaps, ratecontrol
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
@@ -30,11 +30,13 @@ from .bitstream import (
     unpack,
 )
 from .coding import code_image, new_coders
-from .decoder import decode, restorations
+from .decoder import decode, decoded_image, restorations
+from .files import as_read
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
 from .memory import check_memory
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
+from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, wavelet_coefficients
 from .wavelets import max_levels, subband_slices
@@ -50,8 +52,10 @@ class Encoded:
     threshold: float
     # Squared quantization error summed over all (padded) coefficients, before any restoration.
     coefficient_sse: float
-    # PSNR of the decoded file, when the encoder has already measured it (the restoration does).
+    # PSNR of the decoded file at the source's depth, when the encoder has already measured it
+    # (the restoration does), and what decode returns for the file.
     psnr: float | None = None
+    decoded: np.ndarray | None = field(default=None, repr=False, compare=False)
     # What the file holds, as the decoder will find it: the quadtrees and the bins of every
     # channel, shape (H', W') (for the choice of the restoration, without decoding the file).
     header: Header | None = field(default=None, repr=False, compare=False)
@@ -138,6 +142,7 @@ def encode(
     bpp: float | None = None,
     threshold: float | None = None,
     psnr: float | None = None,
+    max_angle: float | None = None,
     transform: str = "bandelet",
     kind: Kind = "image",
     wavelet: Wavelet | Literal["auto"] = DEFAULT_WAVELET,
@@ -149,20 +154,26 @@ def encode(
     restore: bool = True,
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
+    xy: bool = False,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
     Parameters
     ----------
     array : array_like, shape (H, W) or (H, W, C), C <= 4
-        Values as they are (a normal map: vectors in [-1, 1]; a geometry image: positions).
+        Values as they are (a normal map: vectors in [-1, 1], uint8 / uint16 samples, or
+        ``x, y`` alone; a geometry image: positions).
         A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
         rebuilds ``z``); otherwise as three channels, in local frames around the coarser
         decoded normals (:mod:`bandelets.frames`, normal weight
         :data:`bandelets.bitstream.NORMAL_MAP_WEIGHT`).
-    bpp, threshold, psnr : float, exactly one
+    bpp, threshold, psnr, max_angle : float, exactly one
         Target rate in bits per pixel (the file lands within 3 % below it), quantization
-        threshold ``T``, or target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``).
+        threshold ``T``, target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``), or
+        for a normal map the largest 99th percentile of the angular error in degrees
+        (:func:`bandelets.metrics.angular_error`: the mean follows the PSNR, the tail is what
+        shows as artefacts along creases; the maximum is one pixel's luck). Quality targets hold
+        for the decoded values written at the source's ``depth``.
     transform : {"bandelet", "wavelet"}
         ``"wavelet"`` forces every square to NULL: the same codec without geometry.
     kind : {"image", "normal-map", "geometry-image"}
@@ -191,9 +202,12 @@ def encode(
         Costs no bits; the encoder and decoder then take longer (about 5 ms per iteration for
         256 x 256 x 2).
     progress : bool
-        Progress bar during rate control.
+        A progress line on stderr naming the stage (rate control, restoration search).
     max_memory : int
         Refuse (``ValueError``) an image whose encoding would need more than this many bytes.
+    xy : bool
+        Normal maps: ``array`` holds ``x, y`` and an unused blue (see :mod:`bandelets.normalmaps`,
+        which also says how two channels and integer samples are read).
 
     Returns
     -------
@@ -220,8 +234,11 @@ def encode(
         restore=restore,
         progress=progress,
         max_memory=max_memory,
+        xy=xy,
     )
-    return encode_with_stats(array, options, bpp=bpp, threshold=threshold, psnr=psnr).data
+    return encode_with_stats(
+        array, options, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle
+    ).data
 
 
 def encode_with_stats(
@@ -231,18 +248,26 @@ def encode_with_stats(
     bpp: float | None = None,
     threshold: float | None = None,
     psnr: float | None = None,
+    max_angle: float | None = None,
+    measured: bool = False,
 ) -> Encoded:
     """:func:`encode` with its options already validated, returning also the threshold used, the
-    predicted error and (when the encoder chose the restoration) the PSNR of the decoded file."""
+    predicted error and (when the encoder chose the restoration, or ``measured``) the PSNR of the
+    decoded file at the source's depth and what :func:`decode` returns for it (``measured``
+    costs a decode without the restoration)."""
+    targets = dict(bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle)
     if options.wavelet == AUTO_WAVELET:
-        return _best_of_wavelets(array, options, bpp=bpp, threshold=threshold, psnr=psnr)
-    kind, max_memory = options.kind, options.max_memory
-    x = check_image(array, kind, max_memory)
+        return _best_of_wavelets(array, options, measured=measured, **targets)
+    kind, max_memory, depth, layout = options.kind, options.max_memory, options.depth, "xyz"
+    if kind == "normal-map":
+        array, depth, layout = normalmaps.prepare(array, depth, options.xy)
+    x = given = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
-    targets = [v for v in (bpp, threshold, psnr) if v is not None]
-    if len(targets) != 1:
-        raise ValueError("give exactly one of bpp, threshold or psnr")
+    if sum(v is not None for v in targets.values()) != 1:
+        raise ValueError("give exactly one of bpp, threshold, psnr or max_angle")
+    if max_angle is not None and kind != "normal-map":
+        raise ValueError("max_angle applies to normal maps only")
     if threshold is not None:
         check_threshold(threshold)
     levels = max_levels(x.shape[:2])
@@ -252,6 +277,8 @@ def encode_with_stats(
             levels -= 1
     # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
+    if layout != "xyz":  # x, y as given (see bandelets.normalmaps)
+        coded = given[..., :2]
     if kind == "normal-map":  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
     coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
@@ -266,75 +293,116 @@ def encode_with_stats(
             wavelet=options.wavelet,
             levels=levels,
             threshold=t,
-            depth=options.depth,
+            depth=depth,
             transform_1d=options.transform_1d,
             **geometry,
+            layout=layout,
         )
         return encode_at_threshold(coefficients, header)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
     t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
-    reference = x[..., 0] if x.shape[2] == 1 else x
+    reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
+    # What the user gets: the decoded values written at the source's depth.
+    measure_psnr = metrics.psnr_against(reference, kind)
+    measure_channels = metrics.psnr_of_channels(reference, kind, depth)
+    # The decoded image is kept for the caller (measured) or the angular target.
+    keep = measured or max_angle is not None
 
-    def finished(encoded: Encoded) -> Encoded:
-        done = _with_restoration(encoded, reference, max_memory) if options.restore else encoded
-        return replace(done, trees=None, bins=None)  # only the restoration's choice needed them
+    def measure(decoded: np.ndarray) -> float:
+        return measure_psnr(as_read(decoded, kind, depth))
 
-    if threshold is not None:
-        return finished(encode_at(float(threshold)))
-    if bpp is not None:
-        if not (np.isfinite(bpp) and bpp > 0):
-            raise ValueError(f"bpp must be a positive number, got {bpp}")
-        target = int(bpp * x.shape[0] * x.shape[1] / 8)
-        if target < HEADER_BYTES:
-            raise ValueError(
-                f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at least "
-                f"{HEADER_BYTES} bytes of header"
-            )
-        model = ratecontrol.size_model(magnitudes)
-        return finished(ratecontrol.for_size(encode_at, target, t_max, model, options.progress))
-    if not np.isfinite(psnr):
-        raise ValueError(f"psnr must be a finite number, got {psnr}")
-    # Start where a uniform quantizer's error would meet the target.
-    t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
-
-    def quality(encoded: Encoded) -> float:
-        if encoded.psnr is not None:  # measured on the restored image, as decode returns it
-            return encoded.psnr
+    def decoded(encoded: Encoded) -> np.ndarray:
+        if encoded.decoded is not None:  # the restored image, as decode returns it
+            return encoded.decoded
         # Our own file: only the caller's memory limit applies, not the limits on foreign files.
-        decoded = decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
-        return metrics.psnr(reference, decoded, kind)
+        return decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
 
-    # Each try is restored: the target is met by the restored image, with the smallest file.
-    return ratecontrol.for_quality(
-        lambda t: finished(encode_at(t)), quality, float(psnr), t_max, t_guess, options.progress
-    )
+    with Progress(options.progress) as line:
+
+        def finished(encoded: Encoded) -> Encoded:
+            if options.restore:
+                encoded = _with_restoration(encoded, measure_channels, max_memory, line, keep)
+            elif measured:
+                out = decoded(encoded)
+                encoded = replace(encoded, psnr=measure(out), decoded=out)
+            return replace(encoded, trees=None, bins=None)  # only the restoration's choice needed them
+
+        if threshold is not None:
+            return finished(encode_at(float(threshold)))
+        line.stage("rate control")
+        if bpp is not None:
+            if not (np.isfinite(bpp) and bpp > 0):
+                raise ValueError(f"bpp must be a positive number, got {bpp}")
+            target = int(bpp * x.shape[0] * x.shape[1] / 8)
+            if target < HEADER_BYTES:
+                raise ValueError(
+                    f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at "
+                    f"least {HEADER_BYTES} bytes of header"
+                )
+            model = ratecontrol.size_model(magnitudes)
+            return finished(ratecontrol.for_size(encode_at, target, t_max, model, line))
+        if max_angle is not None:
+            if not (np.isfinite(max_angle) and 0 < max_angle < 180):
+                raise ValueError(f"max_angle must be a number of degrees from 0 to 180, got {max_angle}")
+            # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
+            goal, t_guess = -20.0 * np.log10(max_angle), min(t_max, np.radians(max_angle))
+
+            def quality(encoded: Encoded) -> float:
+                p99 = metrics.angular_error(reference, as_read(decoded(encoded), kind, depth)).p99
+                return -20.0 * np.log10(max(p99, 1e-12))
+
+            def label(q: float) -> str:
+                return f"p99 angle of {10 ** (-q / 20):.3g} degrees"
+        else:
+            if not np.isfinite(psnr):
+                raise ValueError(f"psnr must be a finite number, got {psnr}")
+            goal = float(psnr)
+            # Start where a uniform quantizer's error would meet the target.
+            t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
+
+            def quality(encoded: Encoded) -> float:
+                return encoded.psnr if encoded.psnr is not None else measure(decoded(encoded))
+
+            def label(q: float) -> str:
+                return f"PSNR of {q:.2f} dB"
+
+        # Each try is restored: the target is met by the restored image, with the smallest file.
+        return ratecontrol.for_quality(
+            lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label
+        )
 
 
 #: The encoder stops trying more restoration iterations this many after the best so far.
 _RESTORATION_PATIENCE = 10
 
 
-def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) -> Encoded:
-    """``encoded`` with the number of restoration iterations that decodes closest to
-    ``reference`` (the image as :func:`decode` should return it) written into its header."""
+def _with_restoration(encoded: Encoded, measure, max_memory: int, line: Progress, keep: bool) -> Encoded:
+    """``encoded`` with the number of restoration iterations whose decoded channels score best by
+    ``measure`` (:func:`bandelets.metrics.psnr_of_channels`) written into its header, that score
+    and (``keep``) that decoded image."""
     header = encoded.header
     try:
         check_memory(replace(header, restoration=1), max_memory)
     except FormatError:  # the decoder could not afford it either
         return encoded
-    best, best_psnr = 0, -np.inf
-    measure = metrics.psnr_of_channels(reference, header.kind)
+    best, best_psnr, best_channels = 0, -np.inf, None
+    line.stage("restoration search", restart=True)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins)):
         value = measure(channels)
+        line.step(f"T={header.threshold:.3g}: {value:.2f} dB")
         if value > best_psnr:
-            best, best_psnr = n, value
+            # The iterations work in place: a copy of the best, when its image is wanted.
+            best, best_psnr, best_channels = n, value, channels.copy() if keep else None
         if n == MAX_RESTORATION or n - best >= _RESTORATION_PATIENCE:
             break
+    line.stage("rate control")
+    best_output = None if best_channels is None else decoded_image(best_channels, header)
     if best == 0:
-        return replace(encoded, psnr=best_psnr)
+        return replace(encoded, psnr=best_psnr, decoded=best_output)
     header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
-    return replace(encoded, data=pack(replace(header, restoration=best), streams), psnr=best_psnr)
+    data = pack(replace(header, restoration=best), streams)
+    return replace(encoded, data=data, psnr=best_psnr, decoded=best_output)
 
 
 #: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD
@@ -342,7 +410,7 @@ def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) 
 AUTO_CANDIDATES = ("cdf97", "haar")
 
 
-def _best_of_wavelets(array, options: EncodeOptions, *, bpp, threshold, psnr) -> Encoded:
+def _best_of_wavelets(array, options: EncodeOptions, *, bpp, measured, **targets) -> Encoded:
     """Encode with each wavelet of :data:`AUTO_CANDIDATES` and keep the best file.
 
     For a rate target, the one whose decoded image has the higher PSNR; for a quality target
@@ -351,15 +419,14 @@ def _best_of_wavelets(array, options: EncodeOptions, *, bpp, threshold, psnr) ->
     # The spherical extension exists for CDF 9/7 only.
     candidates = AUTO_CANDIDATES if options.extension == "symmetric" else ("cdf97",)
     files = [
-        encode_with_stats(array, replace(options, wavelet=w), bpp=bpp, threshold=threshold, psnr=psnr)
+        # A rate target compares the PSNR of each.
+        encode_with_stats(
+            array, replace(options, wavelet=w), bpp=bpp, measured=measured or bpp is not None, **targets
+        )
         for w in candidates
     ]
-    if psnr is not None:
-        return min(files, key=lambda f: len(f.data))
-    if threshold is not None:
+    if targets["threshold"] is not None:
         return min(files, key=lambda f: f.coefficient_sse + LAMBDA * f.threshold**2 * 8 * len(f.data))
-    kind = options.kind
-    x = check_image(array, kind, options.max_memory)
-    reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
-    limits = dict(max_memory=options.max_memory, max_side=2**32, max_samples=2**64)
-    return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))
+    if bpp is None:
+        return min(files, key=lambda f: len(f.data))
+    return max(files, key=lambda f: f.psnr)

@@ -1,4 +1,5 @@
-"""Reading and writing the arrays the command line works on: PNG and .npy.
+"""Reading and writing the arrays the command line works on: PNG, .npy, OpenEXR and TIFF
+(the last two through :mod:`bandelets.formats`).
 
 PNG samples are mapped to [0, 1] for images and to [-1, 1] for normal maps (``2 v - 1``),
 and mapped back the same way, at the bit depth recorded in the .bdl file. PNG coding goes
@@ -11,21 +12,94 @@ import io
 import os
 import tempfile
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["read_array", "write_array", "write_atomic"]
+from .formats import read_exr, read_tiff, write_exr, write_tiff
+
+__all__ = [
+    "SUFFIXES",
+    "as_read",
+    "check_suffix",
+    "from_samples",
+    "integer_samples",
+    "read_array",
+    "to_samples",
+    "write_array",
+    "write_atomic",
+]
+
+
+def to_samples(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
+    """Values as unsigned samples of ``depth`` bits (8 or 16): ``[0, 1]`` for images, ``[-1, 1]``
+    for normal maps (``(v + 1) / 2``), rounded and clipped."""
+    values = (values + 1.0) / 2.0 if kind == "normal-map" else values
+    top = 2**depth - 1
+    return np.clip(np.rint(values * top), 0, top).astype(np.uint8 if depth == 8 else np.uint16)
+
+
+def from_samples(pixels: np.ndarray, kind: str, depth: int) -> np.ndarray:
+    """Float64 values of unsigned samples of ``depth`` bits (the inverse of :func:`to_samples`)."""
+    values = pixels.astype(np.float64) / (2**depth - 1)
+    return 2.0 * values - 1.0 if kind == "normal-map" else values
+
+
+def as_read(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
+    """``values`` as a file of ``depth`` bits (0: float, unchanged) would give them back: what a
+    decoded image is once written at its source's depth."""
+    return from_samples(to_samples(values, kind, depth), kind, depth) if depth else values
+
+
+#: Suffixes of the files read and written: PNG (8 or 16-bit), .npy, OpenEXR, TIFF (8, 16-bit, float).
+SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff")
+# Lossy 8-bit formats: their artefacts would be coded as detail.
+_REFUSED = {".jpg": "JPEG", ".jpeg": "JPEG", ".webp": "WebP"}
+
+
+def check_suffix(path: str | os.PathLike, what: str = "input") -> None:
+    """``ValueError`` unless ``path`` ends in one of :data:`SUFFIXES` (``what``: input or output)."""
+    suffix = Path(path).suffix.lower()
+    if what == "input" and suffix in _REFUSED:
+        raise ValueError(
+            f"{path}: {_REFUSED[suffix]} inputs are refused (lossy: their artefacts would be coded as "
+            "detail); give the original as PNG, TIFF, EXR or .npy"
+        )
+    if suffix not in SUFFIXES:
+        raise ValueError(
+            f"{path}: unsupported {what} format {suffix or '(none)'}; use {', '.join(SUFFIXES[:-1])}"
+        )
+
+
+def integer_samples(values: np.ndarray, kind: str, depth: int = 0) -> tuple[np.ndarray, int]:
+    """A normal map's ``uint8`` / ``uint16`` samples as values (as PNG samples) and their depth;
+    ``ValueError`` for another integer type, which has no agreed scale, or a ``depth`` that
+    disagrees. Floats, and integers of any other kind, are returned as they are."""
+    if kind != "normal-map" or values.dtype.kind not in "uib":
+        return values, depth
+    bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(values.dtype)
+    if bits is None:
+        raise ValueError(
+            f"a normal map of {values.dtype} values has no agreed scale: give floats in [-1, 1] "
+            "or uint8 / uint16 samples"
+        )
+    if depth not in (0, bits):
+        raise ValueError(f"a normal map of {values.dtype} samples has depth {bits}, not {depth}")
+    return from_samples(values, kind, bits), bits
 
 
 def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
-    """Read a PNG or .npy file.
+    """Read a PNG, .npy, EXR or TIFF file (:data:`SUFFIXES`).
+
+    Integer samples of PNG and TIFF files (and ``uint8`` / ``uint16`` .npy normal maps) are
+    mapped to [0, 1], or [-1, 1] for a normal map; floats are taken as they are.
 
     Returns
     -------
     array : ndarray, float64, (H, W) or (H, W, C)
     depth : int
-        PNG bit depth (8 or 16), or 0 for .npy.
+        Bit depth of integer samples (8 or 16), or 0 for floats.
 
     Raises
     ------
@@ -33,6 +107,7 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
         Missing, unreadable or unsupported file.
     """
     path = Path(path)
+    check_suffix(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     suffix = path.suffix.lower()
@@ -43,9 +118,16 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
             raise ValueError(f"{path}: not a readable .npy file ({err})") from None
         if not np.issubdtype(array.dtype, np.number) or np.iscomplexobj(array):
             raise ValueError(f"{path}: expected a real numeric array, got dtype {array.dtype}")
-        return array.astype(np.float64), 0
-    if suffix != ".png":
-        raise ValueError(f"{path}: unsupported input format {suffix or '(none)'}; use .png or .npy")
+        try:
+            array, depth = integer_samples(array, kind)
+        except ValueError as err:
+            raise ValueError(f"{path}: {err}") from None
+        return array.astype(np.float64), depth
+    if suffix == ".exr":
+        return read_exr(path).astype(np.float64), 0
+    if suffix in (".tif", ".tiff"):
+        pixels, depth = read_tiff(path)
+        return (from_samples(pixels, kind, depth) if depth else pixels.astype(np.float64)), depth
     import imagecodecs
 
     try:
@@ -60,19 +142,20 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
         pixels = pixels[..., :-1]
     if pixels.ndim == 3 and pixels.shape[2] == 1:
         pixels = pixels[..., 0]
-    values = pixels.astype(np.float64) / (2**depth - 1)
-    if kind == "normal-map":
-        values = 2.0 * values - 1.0
-    return values, depth
+    return from_samples(pixels, kind, depth), depth
 
 
-def write_atomic(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+def write_atomic(path: str | os.PathLike, data: bytes | Callable[[str], None]) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename
+    (``data`` may be a function that writes a file at the path it is given)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            if not callable(data):
+                f.write(data)
+        if callable(data):
+            data(tmp)
         # mkstemp makes the file private; give it the permissions a plain open() would.
         umask = os.umask(0)
         os.umask(umask)
@@ -84,20 +167,28 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 
 def write_array(path: str | os.PathLike, array: np.ndarray, kind: str, depth: int) -> None:
-    """Write a decoded array as .npy (float32) or PNG (``depth`` bits, 16 for float sources)."""
+    """Write a decoded array as .npy (float32), EXR (float32), PNG (``depth`` bits, 16 for float
+    sources) or TIFF (``depth`` bits, float32 for float sources).
+
+    PNG has no two-channel colour layout: a normal map of ``x, y`` is written as RGB with the
+    rebuilt ``z`` in blue.
+    """
     path = Path(path)
+    check_suffix(path, "output")
     suffix = path.suffix.lower()
     if suffix == ".npy":
         buffer = io.BytesIO()
         np.save(buffer, array.astype(np.float32))
         write_atomic(path, buffer.getvalue())
-        return
-    if suffix != ".png":
-        raise ValueError(f"{path}: unsupported output format {suffix or '(none)'}; use .png or .npy")
-    import imagecodecs
+    elif suffix == ".exr":
+        write_atomic(path, lambda tmp: write_exr(tmp, array))
+    elif suffix in (".tif", ".tiff"):
+        write_atomic(path, write_tiff(to_samples(array, kind, depth) if depth else array.astype(np.float32)))
+    else:
+        import imagecodecs
 
-    values = (array + 1.0) / 2.0 if kind == "normal-map" else array
-    depth = depth or 16
-    top = 2**depth - 1
-    pixels = np.clip(np.rint(values * top), 0, top).astype(np.uint8 if depth == 8 else np.uint16)
-    write_atomic(path, imagecodecs.png_encode(pixels))
+        if kind == "normal-map" and array.ndim == 3 and array.shape[2] == 2:
+            from .metrics import with_z  # here: metrics loads numba, which checking a name must not
+
+            array = with_z(array)
+        write_atomic(path, imagecodecs.png_encode(to_samples(array, kind, depth or 16)))

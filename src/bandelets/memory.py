@@ -68,5 +68,6 @@ def check_memory(header: Header, max_memory: int = MAX_MEMORY) -> None:
     if need > max_memory:
         raise FormatError(
             f"decoding this {header.width} x {header.height} x {header.channels} image needs about "
-            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB (max_memory)"
+            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB "
+            "(--max-memory, max_memory)"
         )

@@ -7,11 +7,25 @@ with its source.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["bits_per_pixel", "bd_psnr", "psnr", "psnr_against", "psnr_of_channels", "peak", "unit_vectors"]
+from .files import as_read
+
+__all__ = [
+    "AngularError",
+    "angular_error",
+    "bits_per_pixel",
+    "bd_psnr",
+    "psnr",
+    "psnr_against",
+    "psnr_of_channels",
+    "peak",
+    "unit_vectors",
+    "with_z",
+]
 
 
 def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
@@ -26,6 +40,43 @@ def unit_vectors(vectors: np.ndarray) -> np.ndarray:
     out = vectors / np.where(norm > 0, norm, 1.0)
     out[..., 2] = np.where(norm[..., 0] > 0, out[..., 2], 1.0)
     return out
+
+
+def with_z(xy: np.ndarray) -> np.ndarray:
+    """Normals of shape (..., 3) from their ``x, y`` (..., 2), as a BC5 decoder rebuilds them:
+    ``z = sqrt(1 - x^2 - y^2)``, 0 where ``x, y`` lie outside the unit disc."""
+    z = np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))
+    return np.concatenate([xy, z], axis=-1)
+
+
+class AngularError(NamedTuple):
+    """Angles between original and decoded normals, in degrees."""
+
+    mean: float
+    p99: float
+    max: float
+
+
+def angular_error(reference: np.ndarray, decoded: np.ndarray) -> AngularError:
+    """Mean, 99th percentile and largest angle between the normals of two maps, in degrees.
+
+    Parameters
+    ----------
+    reference, decoded : ndarray, shape (H, W, 3), or (H, W, 2) for ``x, y`` maps (:func:`with_z`)
+        Vectors of any length (both are renormalised; a zero vector counts as +z).
+
+    Returns
+    -------
+    AngularError
+    """
+    a, b = (np.asarray(v, np.float64) for v in (reference, decoded))
+    a, b = (unit_vectors(with_z(v) if v.shape[-1] == 2 else v) for v in (a, b))
+    if a.shape != b.shape or a.shape[-1] != 3:
+        raise ValueError(f"angular_error needs two maps of normals of one shape, got {a.shape} and {b.shape}")
+    # atan2 of the cross and dot products: exact for small angles, where arccos(dot) is not.
+    sine = np.linalg.norm(np.cross(a, b), axis=-1)
+    angles = np.degrees(np.arctan2(sine, np.einsum("...c,...c->...", a, b))).ravel()
+    return AngularError(float(angles.mean()), float(np.percentile(angles, 99)), float(angles.max()))
 
 
 def peak(reference: np.ndarray, kind: str = "image") -> float:
@@ -49,7 +100,8 @@ def psnr(reference: np.ndarray, decoded: np.ndarray, kind: str = "image") -> flo
     """``20 log10(peak / RMSE)`` in dB (``inf`` when equal).
 
     For a normal map both arrays are compared after renormalising the reference to unit
-    vectors (the decoder already renormalises), as the paper measures.
+    vectors (the decoder already renormalises), as the paper measures; a map of shape
+    (H, W, 2) holds ``x, y`` (:func:`with_z`).
     """
     return psnr_against(reference, kind)(decoded)
 
@@ -58,19 +110,24 @@ def psnr_against(reference: np.ndarray, kind: str = "image") -> Callable[[np.nda
     """:func:`psnr` of any decoded array against ``reference``, which is prepared once (the
     encoder measures every restoration iteration)."""
     reference = np.asarray(reference, np.float64)
+    # A normal map of x, y alone is compared on x, y, z (as a BC5 decoder rebuilds z).
+    xy = kind == "normal-map" and reference.shape[-1] == 2
     if kind == "normal-map":
-        reference = unit_vectors(reference)
+        reference = unit_vectors(with_z(reference) if xy else reference)
     top = peak(reference, kind)
 
     def measure(decoded: np.ndarray) -> float:
-        decoded = np.asarray(decoded, np.float64).reshape(reference.shape)
+        decoded = np.asarray(decoded, np.float64)
+        decoded = (with_z(decoded) if xy else decoded).reshape(reference.shape)
         rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
     return measure
 
 
-def psnr_of_channels(reference: np.ndarray, kind: str = "image") -> Callable[[np.ndarray], float]:
+def psnr_of_channels(
+    reference: np.ndarray, kind: str = "image", depth: int = 0
+) -> Callable[[np.ndarray], float]:
     """:func:`psnr_against` ``reference`` of the image that decoded channels stand for, measured
     from the channels themselves, without making that image: the encoder measures every
     restoration iteration, and making the image took as long as the iteration.
@@ -79,25 +136,40 @@ def psnr_of_channels(reference: np.ndarray, kind: str = "image") -> Callable[[np
     reference). For a normal map, two channels are ``x, y`` (``z = sqrt(max(0, 1 - x^2 - y^2))``)
     and three ``x, y, z``, all renormalised as :func:`unit_vectors` does; the error is summed in
     one pass, so the value may differ from :func:`psnr` of the decoded array in the last digits.
+    A reference of two channels is a normal map of ``x, y`` (:func:`with_z`). With ``depth`` (8 or
+    16) the image is measured as written in samples of that depth
+    (:func:`bandelets.files.as_read`): what the user gets.
     """
     reference = np.asarray(reference, np.float64)
     if kind != "normal-map":
         measure = psnr_against(reference, kind)
         rows, cols = reference.shape[:2]
-        return lambda channels: measure(np.moveaxis(channels[:, :rows, :cols], 0, -1))
-    reference = unit_vectors(reference)
+        return lambda channels: measure(as_read(np.moveaxis(channels[:, :rows, :cols], 0, -1), kind, depth))
+    reference = unit_vectors(with_z(reference) if reference.shape[-1] == 2 else reference)
     top = peak(reference, kind)
 
     def measure(channels: np.ndarray) -> float:
-        rmse = float(np.sqrt(_normal_map_sse(reference, channels) / reference.size))
+        rmse = float(
+            np.sqrt(_normal_map_sse(reference, channels, 2**depth - 1 if depth else 0) / reference.size)
+        )
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
     return measure
 
 
 @njit(cache=True, nogil=True)
-def _normal_map_sse(reference, channels):
-    """Squared error of the unit vectors of ``channels`` (2: z rebuilt) against ``reference``."""
+def _as_sample(v, top):
+    """A component in [-1, 1] as a sample of ``top + 1`` levels reads back
+    (:func:`bandelets.files.as_read`); unchanged for ``top = 0`` (floats)."""
+    if top == 0:
+        return v
+    return np.rint(min(max((v + 1.0) / 2.0, 0.0), 1.0) * top) / top * 2.0 - 1.0
+
+
+@njit(cache=True, nogil=True)
+def _normal_map_sse(reference, channels, top):
+    """Squared error of the unit vectors of ``channels`` (2: z rebuilt), as samples of ``top + 1``
+    levels (0: floats), against ``reference``."""
     rows, cols = reference.shape[:2]
     sse = 0.0
     for i in range(rows):
@@ -112,6 +184,7 @@ def _normal_map_sse(reference, channels):
                 x, y, z = x / norm, y / norm, z / norm
             else:  # unit_vectors: a zero vector becomes +z
                 z = 1.0
+            x, y, z = _as_sample(x, top), _as_sample(y, top), _as_sample(z, top)
             sse += (
                 (reference[i, j, 0] - x) ** 2 + (reference[i, j, 1] - y) ** 2 + (reference[i, j, 2] - z) ** 2
             )

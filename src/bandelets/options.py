@@ -72,10 +72,13 @@ class EncodeOptions:
     restore: bool = True
     progress: bool = False
     max_memory: int = MAX_MEMORY
+    xy: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
+        if self.xy and self.kind != "normal-map":
+            raise ValueError("xy applies to normal maps only")
         if self.depth not in (0, 8, 16):
             raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
         check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))
@@ -114,7 +117,8 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
     if need > max_memory:
         raise ValueError(
             f"encoding a {x.shape[1]} x {x.shape[0]} x {x.shape[2]} image needs about "
-            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB (max_memory)"
+            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB "
+            "(--max-memory, max_memory)"
         )
     if not np.all(np.isfinite(x)):
         raise ValueError("input contains NaN or infinite values")

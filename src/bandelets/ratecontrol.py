@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm import tqdm
+
+if TYPE_CHECKING:
+    from .progress import Progress
 
 __all__ = ["for_size", "for_quality", "size_model", "SIZE_TOLERANCE", "SIZE_MODEL"]
 
@@ -57,7 +59,7 @@ def _solve(f: Callable[[float], float], x_min: float, x_max: float) -> float:
     return 0.5 * (x_min + x_max)
 
 
-def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, drift: float, bar) -> None:
+def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, drift: float) -> None:
     """Drive ``measure(x) -> (value, done, below)`` towards ``goal`` in ``x = log T``.
 
     ``below`` says the target lies at larger ``x``. ``model(x)``, decreasing, predicts the value
@@ -70,7 +72,6 @@ def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, 
     for _ in range(_MAX_STEPS):
         x = min(max(x, x_min), x_max)
         value, done, below = measure(x)
-        bar.update()
         if done:
             return
         if below:
@@ -132,7 +133,9 @@ def size_model(magnitudes: np.ndarray) -> Callable[[float], float]:
     return model
 
 
-def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callable, progress: bool = False):
+def for_size(
+    encode_at: Callable, target_bytes: int, t_max: float, model: Callable, progress: Progress | None = None
+):
     """Largest file of at most ``target_bytes`` bytes, by a model-guided secant search on ``log T``.
 
     Parameters
@@ -145,8 +148,8 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
     model : callable
         ``log T -> log(bytes)`` up to a slowly changing offset (:func:`size_model`): the
         search starts where it meets the target and steps by it.
-    progress : bool
-        Progress bar (on a terminal only).
+    progress : Progress, optional
+        Counts the encodings (:class:`bandelets.progress.Progress`).
 
     Returns
     -------
@@ -166,6 +169,8 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
         nonlocal best
         result = encode_at(math.exp(x))
         size = len(result.data)
+        if progress is not None:
+            progress.step(f"T={math.exp(x):.3g}: {size} bytes")
         if size <= target_bytes and (best is None or size > len(best.data)):
             best = result
         if size > target_bytes and x >= math.log(t_max):
@@ -177,11 +182,10 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
         )
         return math.log(size), done, size > target_bytes
 
-    with tqdm(desc="rate control", unit="encode", disable=not progress, leave=False) as bar:
-        start = _solve(lambda x: model(x) - goal, floor, math.log(t_max))
-        _search(measure, goal, start, floor, math.log(t_max), model, 0.0, bar)
-        if best is None:  # the search wandered: the smallest file is the answer, if it fits
-            measure(math.log(t_max))
+    start = _solve(lambda x: model(x) - goal, floor, math.log(t_max))
+    _search(measure, goal, start, floor, math.log(t_max), model, 0.0)
+    if best is None:  # the search wandered: the smallest file is the answer, if it fits
+        measure(math.log(t_max))
     return best
 
 
@@ -191,14 +195,19 @@ def for_quality(
     target: float,
     t_max: float,
     t_guess: float,
-    progress: bool = False,
+    progress: Progress | None = None,
+    label: Callable[[float], str] = lambda q: f"PSNR of {q:.2f} dB",
 ):
     """Smallest file whose ``quality(file) >= target`` (a PSNR in dB), by a secant search.
 
     ``encode_at(T)`` returns an encoded file (with its bytes in ``.data``), which ``quality``
-    is given whole: the encoder may already know the file's PSNR.
+    is given whole: the encoder may already know the file's PSNR. Any other quality that,
+    like a PSNR, falls by about 8.7 per unit of ``log T`` works as well (``-20 log10`` of an
+    error proportional to ``T``); ``label`` names a value of it in error messages.
 
-    Stops when the kept file is within 0.05 dB above the target or ``T`` is pinned.
+    Stops when the kept file is within 0.05 dB above the target, when a file comes back that
+    was met before (a plateau: the smallest file meets the target, or the quality jumps over it
+    between two files), or when ``T`` is pinned.
 
     Raises
     ------
@@ -207,21 +216,27 @@ def for_quality(
     """
     best = None
     floor = math.log(_SMALLEST * t_max)
+    seen = set()
 
     def measure(x):
         nonlocal best
         result = encode_at(math.exp(x))
         q = quality(result)
+        if progress is not None:
+            progress.step(f"T={math.exp(x):.3g}: {label(q)}, {len(result.data)} bytes")
         if q >= target and (best is None or len(result.data) < len(best.data)):
             best = result
         if q < target and x <= floor:
-            raise ValueError(f"target PSNR of {target:g} dB cannot be reached (best {q:.2f} dB)")
-        return q, target <= q < target + 0.05, q >= target
+            raise ValueError(f"target {label(target)} cannot be reached (best {label(q)})")
+        # A file met before (same size and quality; its header differs by T): the search is on a
+        # plateau (the smallest file, or a step between two files) where no threshold gives more.
+        again = (len(result.data), q) in seen
+        seen.add((len(result.data), q))
+        return q, target <= q < target + 0.05 or (again and best is not None), q >= target
 
-    with tqdm(desc="rate control", unit="encode", disable=not progress, leave=False) as bar:
-        # PSNR falls by about 20 log10(e) = 8.7 dB per unit of log T.
-        x0, x_max = math.log(t_guess), math.log(t_max)
-        _search(measure, target + 0.025, x0, floor, x_max, lambda x: -8.7 * x, 0.0, bar)
+    # PSNR falls by about 20 log10(e) = 8.7 dB per unit of log T.
+    x0, x_max = math.log(t_guess), math.log(t_max)
+    _search(measure, target + 0.025, x0, floor, x_max, lambda x: -8.7 * x, 0.0)
     if best is None:
-        raise ValueError(f"target PSNR of {target:g} dB could not be met")
+        raise ValueError(f"target {label(target)} could not be met")
     return best

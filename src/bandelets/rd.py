@@ -32,7 +32,7 @@ from . import anchors, samples
 from .decoder import decode
 from .encoder import encode
 from .files import read_array, write_atomic
-from .metrics import bd_psnr, bits_per_pixel, psnr
+from .metrics import angular_error, bd_psnr, bits_per_pixel, psnr
 from .options import check_image
 from .plots import rate_key, rd_figure
 
@@ -75,6 +75,8 @@ SAMPLE_SIZE = 256
 _COLUMNS = ("input", "codec", "target", "bytes", "bpp", "psnr", "encode_s", "decode_s")
 # For meshes, also the side of the geometry image a point was coded on (empty for Draco).
 _MESH_COLUMNS = (*("bpv" if c == "bpp" else c for c in _COLUMNS), "side")
+# For normal maps, the angular error in degrees (metrics.angular_error; empty for other kinds).
+_ANGLE_COLUMNS = ("angle_mean", "angle_p99", "angle_max")
 
 
 @dataclass(frozen=True)
@@ -217,6 +219,8 @@ def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -
         rate_value = bits_per_pixel(len(written), source.array.shape)
         quality = psnr(source.array, decoded, source.kind)
         side = {}
+        if source.kind == "normal-map":
+            side = dict(zip(_ANGLE_COLUMNS, angular_error(source.array, decoded), strict=True))
     return {
         "input": source.name,
         "codec": codec,
@@ -284,7 +288,7 @@ def run(
             rows.append(_point(source, codec, rate, out / source.name))
         except ValueError as err:
             warnings.warn(f"{source.name}: {codec} at {rate:g} {unit} skipped: {err}", stacklevel=2)
-    _write_csv(rows, out / "rd.csv", _MESH_COLUMNS if any(meshes) else _COLUMNS)
+    _write_csv(rows, out / "rd.csv", _MESH_COLUMNS if any(meshes) else _COLUMNS + _ANGLE_COLUMNS)
 
     rd_figure(rows, out / "rd.png")
     return rows
@@ -363,10 +367,14 @@ def _table(header: list[str], lines: list[list[str]]) -> str:
 
 
 def format_points(rows: list[dict]) -> str:
-    """Every measured point as a Markdown table (meshes: with the geometry image's side)."""
+    """Every measured point as a Markdown table (meshes: with the geometry image's side; normal
+    maps: with the mean and 99th percentile angular error)."""
     sides = bool(rows) and "side" in rows[0]
+    angles = any("angle_mean" in r for r in rows)
     return _table(
-        ["input", "codec", "target", "bytes", rate_key(rows), "PSNR dB", "enc s", "dec s"] + ["side"] * sides,
+        ["input", "codec", "target", "bytes", rate_key(rows), "PSNR dB", "enc s", "dec s"]
+        + ["side"] * sides
+        + ["mean deg", "p99 deg"] * angles,
         [
             [
                 r["input"],
@@ -379,6 +387,7 @@ def format_points(rows: list[dict]) -> str:
                 f"{r['decode_s']:.2f}",
             ]
             + [str(r.get("side", ""))] * sides
+            + [f"{r[k]:.2f}" if k in r else "" for k in _ANGLE_COLUMNS[:2]] * angles
             for r in rows
         ],
     )

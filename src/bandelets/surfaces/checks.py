@@ -68,6 +68,11 @@ def _vertex_fans(faces: np.ndarray) -> int:
     return _components(3 * n_faces, a, b)[0]
 
 
+def _count(n: int, noun: str, plural: str = "") -> str:
+    """``"1 edge"``, ``"2 edges"``."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
 def check_genus0(vertices: np.ndarray, faces: np.ndarray) -> None:
     """Raise ``ValueError`` unless the mesh is a closed, manifold, connected genus-0 surface.
 
@@ -94,26 +99,29 @@ def check_genus0(vertices: np.ndarray, faces: np.ndarray) -> None:
         raise ValueError("some faces repeat a vertex (degenerate triangles)")
     unused = n_vertices - np.unique(faces).size
     if unused:
-        raise ValueError(f"{unused} vertices are used by no face")
+        raise ValueError(f"{_count(unused, 'vertex', 'vertices')} used by no face")
     edges, counts = edge_face_counts(faces)
     n_components = _components(n_vertices, edges[:, 0], edges[:, 1])[0]
     if n_components > 1:
         raise ValueError(f"the mesh has several components ({n_components}); expected one")
     if np.any(counts == 1):
         raise ValueError(
-            f"the mesh is not closed: open boundary of {int(np.sum(counts == 1))} edges "
+            f"the mesh is not closed: open boundary of {_count(int(np.sum(counts == 1)), 'edge')} "
             "(holes must be filled)"
         )
     if np.any(counts > 2):
         raise ValueError(
-            f"the mesh has {int(np.sum(counts > 2))} non-manifold edges (on more than two faces)"
+            f"the mesh has {_count(int(np.sum(counts > 2)), 'non-manifold edge')} (on more than two faces)"
         )
     directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     if np.unique(directed[:, 0] * n_vertices + directed[:, 1]).size != 2 * edges.shape[0]:
         raise ValueError("the faces are not consistently oriented (or the surface is not orientable)")
     fans = _vertex_fans(faces)
     if fans != n_vertices:
-        raise ValueError(f"the mesh has {fans - n_vertices} non-manifold vertices (pinched fans)")
+        raise ValueError(
+            f"the mesh has {_count(fans - n_vertices, 'non-manifold vertex', 'non-manifold vertices')} "
+            "(pinched fans)"
+        )
     euler = n_vertices - edges.shape[0] + faces.shape[0]
     if euler != 2:
         raise ValueError(f"the surface has genus {(2 - euler) // 2}; spherical geometry images need genus 0")

@@ -40,7 +40,12 @@ MESH_FORMATS = ("obj", "ply", "off")
 
 
 def load_mesh(path: str | os.PathLike):
-    """Read a triangle mesh (OBJ, PLY, OFF, STL, ... through trimesh), duplicate vertices merged.
+    """Read a triangle mesh (OBJ, PLY, OFF, STL, ... through trimesh).
+
+    A mesh that is closed and of genus 0 as stored (:func:`bandelets.surfaces.checks.check_genus0`)
+    is kept as it is; any other has its coincident vertices merged (a triangle soup, as STL
+    stores, becomes a surface). Merging first would glue distinct vertices that happen to
+    coincide (``cow.off``) into a non-manifold edge.
 
     Returns
     -------
@@ -57,12 +62,16 @@ def load_mesh(path: str | os.PathLike):
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     try:
-        mesh = trimesh.load(path, force="mesh", process=True)
+        mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many error types for bad files
         raise ValueError(f"{path}: not a readable mesh ({err})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{path}: no triangles found")
-    return mesh
+    try:
+        checks.check_genus0(mesh.vertices, mesh.faces)
+        return mesh
+    except ValueError:
+        return trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
 
 
 def mesh_bytes(mesh, file_type: str) -> bytes:
