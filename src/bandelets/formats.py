@@ -2,7 +2,8 @@
 :mod:`bandelets.files`).
 
 EXR goes through the ``OpenEXR`` package (the reference library's bindings), TIFF through
-``tifffile``; both are imported when a file of theirs is met. Samples come back as they are
+``tifffile``; both are imported when a file of theirs is met (not for a PNG, nor before the
+command line has checked its arguments). Samples come back as they are
 stored: floats (EXR half or float, TIFF float) with depth 0, and TIFF integer samples of 8 or
 16 bits with that depth, which :mod:`bandelets.files` maps to values as it does PNG samples.
 """

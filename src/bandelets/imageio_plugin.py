@@ -26,6 +26,8 @@ from imageio.core.request import URI_BYTES, InitializationError, Request
 from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 
 from .bitstream import MAGIC, unpack
+from .decoder import decode
+from .encoder import encode
 
 __all__ = ["BandeletsPlugin", "register"]
 
@@ -45,8 +47,6 @@ class BandeletsPlugin(PluginV3):
 
     def read(self, *, index: int | None = None, **options: Any) -> np.ndarray:
         """The decoded image; ``options`` of :func:`bandelets.decode` (``restore``, limits)."""
-        from .codec import decode
-
         if index not in (None, 0, Ellipsis):
             raise IndexError(f"a .bdl file holds one image, not image {index}")
         image = decode(self._data, **options)
@@ -57,8 +57,6 @@ class BandeletsPlugin(PluginV3):
 
     def write(self, ndimage: np.ndarray, *, is_batch: bool = False, **options: Any) -> bytes | None:
         """Encode ``ndimage`` with the options of :func:`bandelets.encode` (default ``bpp=1``)."""
-        from .codec import encode
-
         if is_batch:
             raise ValueError("a .bdl file holds one image")
         if not {"bpp", "threshold", "psnr", "max_angle"} & set(options):

@@ -35,7 +35,7 @@ def encode_summary(
 ) -> str:
     """``source (W x H x C, depth) -> output: bytes, bpp, PSNR[, angular error], seconds``.
 
-    ``encoded`` is the :class:`bandelets.codec.Encoded` of ``array`` (measured), whose PSNR is that
+    ``encoded`` is the :class:`bandelets.encoder.Encoded` of ``array`` (measured), whose PSNR is that
     of the decoded file at the source's ``depth``; the angles are measured there too.
     """
     n = len(encoded.data)
