@@ -326,7 +326,10 @@ def encode_with_stats(
             elif measured:
                 out = decoded(encoded)
                 encoded = replace(encoded, psnr=measure(out), decoded=out)
-            return replace(encoded, trees=None, bins=None)  # only the restoration's choice needed them
+            # Only the restoration's choice needed the trees and bins; the decoded image is kept
+            # for the caller (measured) or the angular target, not held through rate control.
+            keep = measured or max_angle is not None
+            return replace(encoded, trees=None, bins=None, decoded=encoded.decoded if keep else None)
 
         if threshold is not None:
             return finished(encode_at(float(threshold)))
