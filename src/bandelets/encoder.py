@@ -328,7 +328,6 @@ def encode_with_stats(
                 encoded = replace(encoded, psnr=measure(out), decoded=out)
             # Only the restoration's choice needed the trees and bins; the decoded image is kept
             # for the caller (measured) or the angular target, not held through rate control.
-            keep = measured or max_angle is not None
             return replace(encoded, trees=None, bins=None, decoded=encoded.decoded if keep else None)
 
         if threshold is not None:
