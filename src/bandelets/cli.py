@@ -258,6 +258,15 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
 
+def _working() -> None:
+    """Called by each command once its arguments are checked, before the codec loads: from here
+    on numba may compile the kernels, and :func:`bandelets.compilation.announce` says so (numba
+    itself takes a third of a second to import: not for an argument error)."""
+    from .compilation import announce
+
+    announce()
+
+
 def _check_input(path: str) -> None:
     if not Path(path).is_file():
         raise ValueError(f"{path}: no such file")
@@ -278,6 +287,7 @@ def _encode(args) -> None:
     _check_output(args.input, args.output, args.force)
     if Path(args.output).suffix.lower() in IMAGE_SUFFIXES:
         raise ValueError(f"{args.output}: encode writes a .bdl file; name it {Path(args.output).stem}.bdl")
+    _working()
     start = time.perf_counter()
     from .files import read_array
 
@@ -318,6 +328,7 @@ def _decode(args) -> None:
     from .files import check_suffix
 
     check_suffix(args.output, "output")
+    _working()
     start = time.perf_counter()
     from .bitstream import unpack
     from .decoder import decode_parsed
@@ -353,6 +364,7 @@ def _read_bdl(path: str) -> bytes:
 
 def _info(args) -> None:
     _check_input(args.input)
+    _working()
     from .bitstream import FORMAT_VERSION, unpack
     from .metrics import bits_per_pixel
 
@@ -390,6 +402,7 @@ def _info(args) -> None:
 
 
 def _demo(args) -> None:
+    _working()
     from .demo import run_demo
 
     rates = [float(r) for r in args.rates.split(",") if r.strip()]
@@ -406,6 +419,7 @@ def _numbers(text: str, option: str) -> list[float]:
 
 
 def _rd(args) -> None:
+    _working()
     from . import anchors, rd
 
     inputs = args.inputs or (["sample:edge-step", "sample:edge-tangent"] if args.decay else [])
@@ -459,6 +473,7 @@ def _show(args) -> None:
     _check_output(args.input, args.output, args.force)
     if Path(args.output).suffix.lower() != ".png":
         raise ValueError(f"{args.output}: show draws a PNG; name it {Path(args.output).stem}.png")
+    _working()
     from .show import geometry_figure
 
     with _about(args.input):
@@ -467,10 +482,11 @@ def _show(args) -> None:
 
 def _mesh_encode(args) -> None:
     _check_input(args.input)
+    _check_output(args.input, args.output, args.force)
+    _working()
     from .files import write_atomic
     from .surfaces.codec import encode_mesh, load_mesh
 
-    _check_output(args.input, args.output, args.force)
     with _about(args.input):  # the mesh's checks name what is wrong, not which file
         data = encode_mesh(
             load_mesh(args.input),
@@ -493,6 +509,7 @@ def _mesh_decode(args) -> None:
     file_type = Path(args.output).suffix.lower().lstrip(".")
     if file_type not in ("obj", "ply", "off"):  # bandelets.surfaces.codec.MESH_FORMATS
         raise ValueError(f"{args.output}: unsupported mesh format; use .obj, .ply or .off")
+    _working()
     from .files import write_atomic
     from .surfaces.codec import decode_mesh, mesh_bytes
 
@@ -503,14 +520,15 @@ def _mesh_decode(args) -> None:
 
 def _geometry_image(args) -> None:
     _check_input(args.input)
-    from .files import write_array
-    from .surfaces.codec import load_mesh, make_geometry_image
-
     outputs = [args.output] + ([args.normals] if args.normals else [])
     for output, suffixes in zip(outputs, ((".npy",), (".png", ".npy")), strict=False):
         _check_output(args.input, output, args.force)
         if Path(output).suffix.lower() not in suffixes:
             raise ValueError(f"{output}: unsupported output format; use {' or '.join(suffixes)}")
+    _working()
+    from .files import write_array
+    from .surfaces.codec import load_mesh, make_geometry_image
+
     with _about(args.input):
         image = make_geometry_image(load_mesh(args.input), args.size)
     write_array(args.output, image.positions, "geometry-image", 0)
@@ -519,6 +537,7 @@ def _geometry_image(args) -> None:
 
 
 def _batch(args) -> int:
+    _working()
     from .batching import batch
 
     report = batch(
@@ -554,9 +573,6 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always")
         try:
             args = parser.parse_args(argv)
-            from .compilation import announce  # numba: after the arguments are read
-
-            announce()
             if commands[args.command](args):  # batch: some inputs failed
                 return 1
         except _UsageError as err:
