@@ -43,9 +43,9 @@ from tqdm import tqdm
 from .bitstream import FORMAT_VERSION, KINDS
 from .decoder import decode
 from .encoder import encode
-from .files import read_array, write_atomic
+from .files import SUFFIXES, read_array, write_atomic
 from .memory import decoder_memory, encoder_memory
-from .metrics import bits_per_pixel, psnr, unit_vectors
+from .metrics import angular_error, bits_per_pixel, psnr
 from .rd import MESH_SUFFIXES
 from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
 from .surfaces.metrics import hausdorff_psnr
@@ -82,7 +82,7 @@ COLUMNS = (
     "worker",
 )
 #: Inputs read as images; meshes are the suffixes of :data:`bandelets.rd.MESH_SUFFIXES`.
-IMAGE_SUFFIXES = (".png", ".npy")
+IMAGE_SUFFIXES = SUFFIXES
 #: The sidecar of finished files in the output folder (JSON lines).
 MANIFEST = ".bandelets-batch.jsonl"
 
@@ -197,8 +197,8 @@ def _compress_image(job: Job) -> dict:
     row = {"bytes": len(data), "bpp": bits_per_pixel(len(data), array.shape)}
     row["psnr"] = psnr(array, decoded, job.kind)
     if job.kind == "normal-map":
-        angles = angular_errors_deg(array, decoded)
-        row |= {"mean_angle_deg": float(angles.mean()), "p99_angle_deg": float(np.percentile(angles, 99))}
+        angles = angular_error(array, decoded)
+        row |= {"mean_angle_deg": angles.mean, "p99_angle_deg": angles.p99}
     return row
 
 
@@ -217,12 +217,6 @@ def _compress_mesh(job: Job) -> dict:
 def _write(path: str, data: bytes) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, data)
-
-
-def angular_errors_deg(reference: np.ndarray, decoded: np.ndarray) -> np.ndarray:
-    """Angle in degrees between the unit vectors of two normal maps, per pixel, (H, W)."""
-    cosines = np.einsum("...c,...c->...", unit_vectors(reference), unit_vectors(decoded))
-    return np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0)))
 
 
 # ---------------------------------------------------------------------------------------------
