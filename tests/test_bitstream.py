@@ -30,7 +30,7 @@ from bandelets.bitstream import (
     unpack,
 )
 
-HEADER_SIZE = 41  # fixed fields, before the streams
+HEADER_SIZE = 42  # fixed fields, before the streams
 GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields
 
 
@@ -275,6 +275,7 @@ def test_truncated_header(small_file):
         (28, "<I", 10**6, "stream lengths"),
         (36, "<I", 0, "stream lengths"),
         (40, "<B", 101, "restoration iterations"),
+        (41, "<B", 4, "directional levels"),
     ],
 )
 def test_absurd_fields_are_format_errors(small_file, offset, fmt, value, words):

@@ -137,8 +137,8 @@ def test_three_channel_normal_maps_are_restored_on_the_sphere(crease_map):
     data = bandelets.encode(normals, bpp=1.0, kind="normal-map", restore=False)
     header, streams = unpack(data)
     assert header.channels == 3
-    trees, quantized = decoder.decoded_bins(header, streams)
-    transforms = decoder.channel_transforms(header, trees, quantized)
+    trees, quantized, lifting = decoder.decoded_bins(header, streams)
+    transforms = decoder.channel_transforms(header, trees, quantized, lifting)
 
     def best(unit_vectors):
         steps = restoration.iterate(quantized, header.threshold, *transforms, unit_vectors=unit_vectors)
@@ -172,8 +172,8 @@ def test_files_with_local_frames_are_restored_in_their_frames():
     data = bandelets.encode(surface, bpp=4.0, kind="geometry-image", frames=True, restore=False)
     header, streams = unpack(data)
     assert header.frames
-    trees, quantized = decoder.decoded_bins(header, streams)
-    analysis, synthesis = decoder.channel_transforms(header, trees, quantized)
+    trees, quantized, lifting = decoder.decoded_bins(header, streams)
+    analysis, synthesis = decoder.channel_transforms(header, trees, quantized, lifting)
     steps = restoration.iterate(quantized, header.threshold, analysis, synthesis)
     np.testing.assert_array_equal(decoder.decoded_image(next(steps), header), bandelets.decode(data))
     for _ in range(5):
@@ -213,8 +213,8 @@ def test_the_encoders_measure_is_the_psnr_of_the_decoded_image(crease_map, facin
     data = bandelets.encode(normals, bpp=0.5, kind="normal-map", restore=False)
     header, streams = unpack(data)
     assert header.channels == (3 if facing_away else 2)
-    trees, quantized = decoder.decoded_bins(header, streams)
+    trees, quantized, lifting = decoder.decoded_bins(header, streams)
     measure = metrics.psnr_of_channels(normals, "normal-map")
-    for _, channels in zip(range(3), decoder.restorations(header, trees, quantized), strict=False):
+    for _, channels in zip(range(3), decoder.restorations(header, trees, quantized, lifting), strict=False):
         decoded = metrics.psnr(normals, decoder.decoded_image(channels, header), "normal-map")
         assert measure(channels) == pytest.approx(decoded, abs=1e-9)

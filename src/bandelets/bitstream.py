@@ -18,8 +18,9 @@ Layout (little endian)::
     20      8     threshold T (float64)
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`)
-    41      ...   geometry-image options (kind 2 only, 10 bytes, see below)
-    41/51   ...   the three streams
+    41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
+    42      ...   geometry-image options (kind 2 only, 10 bytes, see below)
+    42/52   ...   the three streams
     end-4   4     CRC32 of everything before it
 
 A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
@@ -32,7 +33,9 @@ normal map of three channels in local frames around its coarser normals (implied
 the channel count, weight :data:`NORMAL_MAP_WEIGHT`: no header field) and lets
 files with local frames be restored. Version 6 fixed the basis of Alpert's multiwavelet by
 construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
-rotation depended on the CPU's LAPACK kernels). This build reads version 6 only.
+rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive lifting at the
+finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
+directions stream). This build reads version 7 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -66,6 +69,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 __all__ = [
+    "MAX_LIFTING",
     "FORMAT_VERSION",
     "KIND_CODES",
     "TRANSFORM_CODES",
@@ -101,7 +105,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
@@ -142,6 +146,8 @@ DEFAULT_NORMAL_WEIGHT = 2.0
 
 #: Most wavelet decomposition levels a file may have.
 MAX_LEVELS = 6
+#: Most wavelet levels a file may lift along directions (:mod:`bandelets.directional`).
+MAX_LIFTING = 3
 #: Most restoration iterations a file may ask for (one byte; :mod:`bandelets.restoration`).
 MAX_RESTORATION = 100
 #: Weight of the normal component of the details of a normal map of three channels, coded in
@@ -155,7 +161,7 @@ MAX_SAMPLES = 2**28
 #: (:mod:`bandelets.memory`).
 MAX_MEMORY = 2 * 2**30
 
-_FIXED = struct.Struct("<4sBBBBBBBBIId3IB")
+_FIXED = struct.Struct("<4sBBBBBBBBIId3IBB")
 #: Size of the smallest possible file: the fixed header and the CRC.
 HEADER_BYTES = _FIXED.size + 4
 #: Options of a geometry image: extension, frames, normal weight.
@@ -192,6 +198,8 @@ class Header:
     restoration: int = 0
     #: Layout of a normal map's source (:data:`LAYOUTS`), which the decoder returns.
     layout: str = "xyz"
+    #: Finest wavelet levels lifted along directions (:mod:`bandelets.directional`; 0: none).
+    lifting: int = 0
 
 
 def implied_options(kind: str, channels: int) -> dict:
@@ -232,6 +240,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.threshold,
         *(len(s) for s in streams),
         header.restoration,
+        header.lifting,
     )
     if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
@@ -288,7 +297,7 @@ def unpack(
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
     kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
     height, width, threshold = fields[9:12]
-    lengths, restoration = fields[12:15], fields[15]
+    lengths, restoration, lifting = fields[12:15], fields[15], fields[16]
     depth, layout_code = depth % 64, depth // 64
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
@@ -320,6 +329,18 @@ def unpack(
         (math.isfinite(threshold) and threshold > 0, f"bad threshold {threshold}"),
         (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
+        (
+            lifting == 0
+            or (
+                wavelet == "cdf97"
+                and not (kind == "geometry-image" or channels == 3 and kind == "normal-map")
+            ),
+            f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
+        ),
+        (
+            lifting <= min(levels, MAX_LIFTING),
+            f"{lifting} directional levels (at most {MAX_LIFTING}, {levels} levels)",
+        ),
     ]
     for ok, message in checks:
         if not ok:
@@ -344,6 +365,7 @@ def unpack(
         **options,
         restoration=restoration,
         layout=layout,
+        lifting=lifting,
     )
     streams = []
     for n in lengths:

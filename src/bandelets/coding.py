@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import entropy
+from . import directional, entropy
 from .bandeletize import debandeletize_bins
 from .bitstream import Header
 from .layout import approximation_plan, subband_plan
@@ -16,7 +16,7 @@ from .quadtree import flat_quadtree, root_width
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
 from .wavelets import padded_shape, subband_slices
 
-__all__ = ["code_image", "new_coders"]
+__all__ = ["code_image", "code_lifting", "new_coders"]
 
 
 def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
@@ -100,7 +100,17 @@ def code_image(
     return out, quantized, spent
 
 
+def code_lifting(coder: entropy.Coder, header: Header, lifting: list | None = None) -> list | None:
+    """Code (``lifting`` given) or decode the directions of the levels lifted along directions
+    (:func:`bandelets.directional.code_fields`), which end the directions stream, after
+    :func:`code_image`; None for a file without them."""
+    if not header.lifting:
+        return None
+    shape = padded_shape((header.height, header.width), header.levels)
+    return directional.code_fields(coder, lifting, shape, header.lifting, N_DIRECTION_CONTEXTS)
+
+
 def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
     """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
-    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS, entropy.coefficient_contexts())
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directional.N_CONTEXTS, entropy.coefficient_contexts())
     return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))

@@ -12,10 +12,10 @@ from itertools import islice
 
 import numpy as np
 
-from . import entropy, frames, metrics, restoration
+from . import directional, entropy, frames, metrics, restoration
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import MAX_MEMORY, FormatError, Header, unpack
-from .coding import code_image, new_coders
+from .coding import code_image, code_lifting, new_coders
 from .memory import check_memory
 from .quantize import dequantize
 from .transform import apply_trees
@@ -81,31 +81,35 @@ def decode_parsed(
     if not restore:
         header = replace(header, restoration=0)
     check_memory(header, max_memory)
-    trees, quantized = decoded_bins(header, streams)
-    channels = next(islice(restorations(header, trees, quantized), header.restoration, None))
+    trees, quantized, lifting = decoded_bins(header, streams)
+    channels = next(islice(restorations(header, trees, quantized, lifting), header.restoration, None))
     return decoded_image(channels, header)
 
 
-def decoded_bins(header: Header, streams: tuple[bytes, bytes, bytes]) -> tuple[list, list[np.ndarray]]:
-    """The quadtrees and the bin indices, shape (H', W') per channel, that the streams hold."""
+def decoded_bins(
+    header: Header, streams: tuple[bytes, bytes, bytes]
+) -> tuple[list, list[np.ndarray], list | None]:
+    """The quadtrees, the bin indices, shape (H', W') per channel, and the directions of the
+    levels lifted along directions (None without), that the streams hold."""
     coders = new_coders(streams)
     try:
         trees, quantized, _ = code_image(coders, header)
+        lifting = code_lifting(coders[1], header)
         for coder in coders:
             coder.check()
     except entropy.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
     shape = padded_shape((header.height, header.width), header.levels)
-    return trees, [q.reshape(shape) for q in quantized]
+    return trees, [q.reshape(shape) for q in quantized], lifting
 
 
-def restorations(header: Header, trees: list, quantized: list[np.ndarray]):
+def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
     """The channels after 0, 1, 2, ... restoration iterations (:func:`bandelets.restoration.iterate`)."""
     unit = header.kind == "normal-map" and header.channels == 3
     return restoration.iterate(
         quantized,
         header.threshold,
-        *channel_transforms(header, trees, quantized),
+        *channel_transforms(header, trees, quantized, lifting),
         unit_vectors=(header.height, header.width) if unit else None,
     )
 
@@ -126,11 +130,12 @@ def _channel_map(header: Header):
     return lambda function, channels: list(pool.map(function, channels))
 
 
-def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray]):
+def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
     """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
     inverse (which overwrites its argument). With local frames, those of every level are the
     ones the decoder finds from the dequantized bins ``quantized``
-    (:func:`bandelets.frames.to_global`), fixed from then on."""
+    (:func:`bandelets.frames.to_global`), fixed from then on; ``lifting``: the directions of the
+    levels lifted along directions, if any."""
     t1d, levels, args = header.transform_1d, header.levels, (header.wavelet, header.levels, header.extension)
     each = _channel_map(header)
     level_frames = None
@@ -142,8 +147,11 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray])
 
     # In place, channel by channel: no copy of the image besides the analysis' output.
     def analysis(x: np.ndarray) -> np.ndarray:
-        c = np.empty_like(x)
-        each(lambda k: wavedec(x[k], *args, out=c[k]), range(len(c)))
+        if lifting is not None:
+            c = np.array(directional.analysis(x, levels, header.lifting, lifting)[0])
+        else:
+            c = np.empty_like(x)
+            each(lambda k: wavedec(x[k], *args, out=c[k]), range(len(c)))
         if level_frames is not None:
             frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=True)
         each(lambda k: apply_trees(c[k], levels, trees, bandeletize, t1d, inplace=True), range(len(c)))
@@ -153,6 +161,10 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray])
         each(lambda k: apply_trees(c[k], levels, trees, debandeletize, t1d, inplace=True), range(len(c)))
         if level_frames is not None:
             frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=False)
+        if lifting is not None:
+            return np.array(
+                each(lambda channel: directional.synthesis(channel, levels, header.lifting, lifting), c)
+            )
         each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
         return c
 

@@ -11,7 +11,7 @@ from typing import Literal
 
 import numpy as np
 
-from . import frames, metrics, normalmaps, ratecontrol
+from . import directional, frames, metrics, normalmaps, ratecontrol
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
@@ -29,7 +29,7 @@ from .bitstream import (
     pack,
     unpack,
 )
-from .coding import code_image, new_coders
+from .coding import code_image, code_lifting, new_coders
 from .decoder import decode, decoded_image, restorations
 from .files import as_read
 from .lagrangian import LAMBDA
@@ -38,7 +38,7 @@ from .memory import check_memory
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
 from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
-from .transform import apply_trees, best_trees, wavelet_coefficients
+from .transform import apply_trees, best_trees, padded_channels, wavelet_coefficients
 from .wavelets import max_levels, subband_slices
 
 __all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
@@ -61,13 +61,18 @@ class Encoded:
     header: Header | None = field(default=None, repr=False, compare=False)
     trees: list | None = field(default=None, repr=False, compare=False)
     bins: list | None = field(default=None, repr=False, compare=False)
+    lifting: list | None = field(default=None, repr=False, compare=False)
 
 
-def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encoded:
+def encode_at_threshold(
+    coefficients: list[np.ndarray], header: Header, lifting: list | None = None
+) -> Encoded:
     """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
 
     Rate control calls this repeatedly with the same coefficients: the wavelet transform is
-    done once, the basis search and the coding once per threshold.
+    done once, the basis search and the coding once per threshold. ``lifting``: the directions
+    of the levels lifted along directions (:func:`bandelets.directional.analysis`) when
+    ``header.lifting``.
     """
     threshold = header.threshold
     before = None
@@ -94,8 +99,9 @@ def encode_at_threshold(coefficients: list[np.ndarray], header: Header) -> Encod
     )
     splits, dirs, coeffs = coders = new_coders()
     trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized])
+    code_lifting(dirs, header, lifting)
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
-    return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized)
+    return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized, lifting=lifting)
 
 
 def _local_frames(coefficients: list[np.ndarray], header: Header):
@@ -152,6 +158,7 @@ def encode(
     normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     extension: str = "symmetric",
     restore: bool = True,
+    lifting: bool = False,
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
     xy: bool = False,
@@ -201,6 +208,11 @@ def encode(
         iterations as bring it closest to ``array`` (none if that is best).
         Costs no bits; the encoder and decoder then take longer (about 5 ms per iteration for
         256 x 256 x 2).
+    lifting : bool
+        Lift the finest :data:`bandelets.directional.LEVELS` wavelet levels along directions
+        chosen per block (:mod:`bandelets.directional`; cdf97, not with local frames, not for a
+        geometry image): better files on creases at an angle (+0.7 dB BD on the 256 x 256
+        crease map, +2.75 dB at 512), about twice the decoding time. Off by default.
     progress : bool
         A progress line on stderr naming the stage (rate control, restoration search).
     max_memory : int
@@ -232,6 +244,7 @@ def encode(
         normal_weight=normal_weight,
         extension=extension,
         restore=restore,
+        lifting=lifting,
         progress=progress,
         max_memory=max_memory,
         xy=xy,
@@ -282,6 +295,7 @@ def encode_with_stats(
     if kind == "normal-map":  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
     coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
+    lifting_levels, lifting = _lifting_levels(options, levels, geometry), None
 
     def encode_at(t: float) -> Encoded:
         header = Header(
@@ -297,8 +311,9 @@ def encode_with_stats(
             transform_1d=options.transform_1d,
             **geometry,
             layout=layout,
+            lifting=lifting_levels,
         )
-        return encode_at_threshold(coefficients, header)
+        return encode_at_threshold(coefficients, header, lifting)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
     t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
@@ -328,9 +343,13 @@ def encode_with_stats(
                 encoded = replace(encoded, psnr=measure(out), decoded=out)
             # Only the restoration's choice needed the trees and bins; the decoded image is kept
             # for the caller (measured) or the angular target, not held through rate control.
-            return replace(encoded, trees=None, bins=None, decoded=encoded.decoded if keep else None)
+            return replace(
+                encoded, trees=None, bins=None, lifting=None, decoded=encoded.decoded if keep else None
+            )
 
         if threshold is not None:
+            if lifting_levels:
+                coefficients, lifting = _lifted(coded, levels, lifting_levels, float(threshold))
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
         if bpp is not None:
@@ -343,6 +362,9 @@ def encode_with_stats(
                     f"least {HEADER_BYTES} bytes of header"
                 )
             model = ratecontrol.size_model(magnitudes)
+            if lifting_levels:
+                t_first = ratecontrol.first_threshold(target, t_max, model)
+                coefficients, lifting = _lifted(coded, levels, lifting_levels, t_first)
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line))
         if max_angle is not None:
             if not (np.isfinite(max_angle) and 0 < max_angle < 180):
@@ -369,10 +391,27 @@ def encode_with_stats(
             def label(q: float) -> str:
                 return f"PSNR of {q:.2f} dB"
 
+        if lifting_levels:
+            coefficients, lifting = _lifted(coded, levels, lifting_levels, t_guess)
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
             lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label
         )
+
+
+def _lifted(coded: np.ndarray, levels: int, lifting_levels: int, threshold: float) -> tuple[list, list]:
+    """The coefficients of the (padded) channels of ``coded`` lifted along directions, and the
+    directions, chosen for ``threshold`` (:func:`bandelets.directional.analysis`)."""
+    return directional.analysis(padded_channels(coded, levels), levels, lifting_levels, threshold=threshold)
+
+
+def _lifting_levels(options: EncodeOptions, levels: int, geometry: dict) -> int:
+    """Wavelet levels to lift along directions for ``options.lifting`` (see :func:`encode`)."""
+    if options.lifting and geometry.get("frames", False):
+        raise ValueError(
+            "directional lifting cannot be combined with local frames (normal maps facing every way)"
+        )
+    return min(directional.LEVELS, levels) if options.lifting else 0
 
 
 #: The encoder stops trying more restoration iterations this many after the best so far.
@@ -390,7 +429,7 @@ def _with_restoration(encoded: Encoded, measure, max_memory: int, line: Progress
         return encoded
     best, best_psnr, best_channels = 0, -np.inf, None
     line.stage("restoration search", restart=True)
-    for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins)):
+    for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins, encoded.lifting)):
         value = measure(channels)
         line.step(f"T={header.threshold:.3g}: {value:.2f} dB")
         if value > best_psnr:
@@ -423,7 +462,11 @@ def _best_of_wavelets(array, options: EncodeOptions, *, bpp, measured, **targets
     files = [
         # A rate target compares the PSNR of each.
         encode_with_stats(
-            array, replace(options, wavelet=w), bpp=bpp, measured=measured or bpp is not None, **targets
+            array,
+            replace(options, wavelet=w, lifting=options.lifting and w == "cdf97"),
+            bpp=bpp,
+            measured=measured or bpp is not None,
+            **targets,
         )
         for w in candidates
     ]

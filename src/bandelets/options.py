@@ -70,6 +70,7 @@ class EncodeOptions:
     normal_weight: float = DEFAULT_NORMAL_WEIGHT
     extension: str = "symmetric"
     restore: bool = True
+    lifting: bool = False
     progress: bool = False
     max_memory: int = MAX_MEMORY
     xy: bool = False
@@ -82,6 +83,11 @@ class EncodeOptions:
         if self.depth not in (0, 8, 16):
             raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
         check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))
+        if self.lifting and (self.wavelet not in ("cdf97", AUTO_WAVELET) or self.kind == "geometry-image"):
+            raise ValueError(
+                f"directional lifting needs the cdf97 wavelet and an image or a normal map, got "
+                f"{self.wavelet} and a {self.kind}"
+            )
         if self.kind != "geometry-image":
             if self.frames or self.extension != "symmetric":
                 raise ValueError("local frames and the spherical extension apply to geometry images only")

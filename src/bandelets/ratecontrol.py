@@ -133,6 +133,12 @@ def size_model(magnitudes: np.ndarray) -> Callable[[float], float]:
     return model
 
 
+def first_threshold(target_bytes: int, t_max: float, model: Callable) -> float:
+    """The ``T`` where :func:`for_size` starts its search: where ``model`` meets the target."""
+    goal = math.log((1 - SIZE_TOLERANCE / 2) * target_bytes)
+    return math.exp(_solve(lambda x: model(x) - goal, math.log(_SMALLEST * t_max), math.log(t_max)))
+
+
 def for_size(
     encode_at: Callable, target_bytes: int, t_max: float, model: Callable, progress: Progress | None = None
 ):
@@ -182,7 +188,7 @@ def for_size(
         )
         return math.log(size), done, size > target_bytes
 
-    start = _solve(lambda x: model(x) - goal, floor, math.log(t_max))
+    start = math.log(first_threshold(target_bytes, t_max, model))
     _search(measure, goal, start, floor, math.log(t_max), model, 0.0)
     if best is None:  # the search wandered: the smallest file is the answer, if it fits
         measure(math.log(t_max))

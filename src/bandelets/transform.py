@@ -23,7 +23,15 @@ from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .treecoding import predicted_directions, reference_of
 from .wavelets import max_levels, padded_shape, subband_slices, wavedec, waverec
 
-__all__ = ["Bandelets", "forward", "inverse", "best_trees", "apply_trees", "wavelet_coefficients"]
+__all__ = [
+    "Bandelets",
+    "forward",
+    "inverse",
+    "best_trees",
+    "apply_trees",
+    "padded_channels",
+    "wavelet_coefficients",
+]
 
 
 @dataclass(frozen=True)
@@ -195,8 +203,13 @@ def inverse(b: Bandelets) -> np.ndarray:
     return waverec(c, b.wavelet, b.levels)[: b.shape[0], : b.shape[1]]
 
 
+def padded_channels(x: np.ndarray, levels: int) -> list[np.ndarray]:
+    """Every channel of ``x`` (H, W, C), padded to a multiple of ``2**levels`` on both sides."""
+    return [_pad(x[..., k], levels) for k in range(x.shape[2])]
+
+
 def wavelet_coefficients(
     x: np.ndarray, wavelet: str, levels: int, extension: str = "symmetric"
 ) -> list[np.ndarray]:
     """Padded, normalised wavelet coefficients of every channel of ``x`` (H, W, C)."""
-    return [wavedec(_pad(x[..., k], levels), wavelet, levels, extension) for k in range(x.shape[2])]
+    return [wavedec(channel, wavelet, levels, extension) for channel in padded_channels(x, levels)]

@@ -61,6 +61,10 @@ GOLDEN = {
         normal_map_24x20,
         {"threshold": 0.005, "kind": "normal-map", "transform": "bandelet"},
     ),
+    "normal24x20-lifted.bdl": (
+        normal_map_24x20,
+        {"threshold": 0.005, "kind": "normal-map", "transform": "bandelet", "lifting": True},
+    ),
     "facing16.bdl": (
         facing_away_16,
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet"},

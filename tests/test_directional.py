@@ -1,0 +1,88 @@
+"""Direction-adaptive lifting: exact inverse, plain CDF 9/7 without directions, the codec's use."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from conftest import straight_edge
+
+import bandelets
+from bandelets import directional, entropy
+from bandelets.bitstream import FormatError, pack, unpack
+from bandelets.metrics import psnr
+from bandelets.wavelets import wavedec
+
+
+def test_synthesis_inverts_analysis_whatever_the_directions(rng):
+    channels = [rng.normal(size=(64, 48)) for _ in range(2)]
+    coefficients, fields = directional.analysis(channels, 3, 2, threshold=0.1)
+    assert any(np.any(f) for f in fields)  # noise picks some direction somewhere
+    random = [rng.integers(0, len(directional.OFFSETS), f.shape) for f in fields]
+    for chosen in (fields, random):
+        coefficients, _ = directional.analysis(channels, 3, 2, chosen)
+        for c, x in zip(coefficients, channels, strict=True):
+            np.testing.assert_allclose(directional.synthesis(c, 3, 2, chosen), x, atol=1e-10)
+
+
+def test_plain_directions_are_the_cdf97_wavelet(rng):
+    x = rng.normal(size=(32, 64))
+    plain = [np.zeros(shape, np.int64) for shape in directional.field_shapes(x.shape, 2)]
+    np.testing.assert_allclose(
+        directional.analysis([x], 4, 2, plain)[0][0], wavedec(x, "cdf97", 4), atol=1e-12
+    )
+
+
+def test_an_oblique_edge_leaves_fewer_fine_coefficients():
+    x = straight_edge(64, angle_deg=63.0, blur=0.5)
+    lifted, fields = directional.analysis([x], 3, 2, threshold=0.01)
+    plain = wavedec(x, "cdf97", 3)
+    fine = np.ones(x.shape, bool)
+    fine[:32, :32] = False  # the finest level's three subbands
+    assert np.any(fields[0])
+    assert np.sum(np.abs(lifted[0][fine])) < 0.7 * np.sum(np.abs(plain[fine]))
+
+
+def test_directions_round_trip_through_the_coder(rng):
+    shape = (64, 96)
+    fields = [
+        rng.integers(0, len(directional.OFFSETS), s) * rng.integers(0, 2, s)
+        for s in directional.field_shapes(shape, 2)
+    ]
+    coder = entropy.Coder(directional.N_CONTEXTS)
+    directional.code_fields(coder, fields, shape, 2, 0)
+    decoded = directional.code_fields(
+        entropy.Coder(directional.N_CONTEXTS, coder.finish()), None, shape, 2, 0
+    )
+    for a, b in zip(fields, decoded, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_normal_maps_are_lifted_on_request(crease_map):
+    data = {
+        lifting: bandelets.encode(crease_map, threshold=0.01, kind="normal-map", lifting=lifting)
+        for lifting in (True, False)
+    }
+    assert unpack(data[True])[0].lifting == directional.LEVELS
+    assert unpack(data[False])[0].lifting == 0
+    assert unpack(bandelets.encode(crease_map, threshold=0.01, kind="normal-map"))[0].lifting == 0
+    quality = {k: psnr(crease_map, bandelets.decode(d), "normal-map") for k, d in data.items()}
+    # The same threshold gives about the same quality (the gain, a smaller file for it, shows on
+    # larger maps: benchmarks/rd_normal_maps.py).
+    assert abs(quality[True] - quality[False]) < 1.0
+    assert quality[True] > 40
+
+
+def test_lifting_where_it_cannot_apply_is_refused(crease_map, edge_image):
+    with pytest.raises(ValueError, match="directional lifting"):
+        bandelets.encode(crease_map, threshold=0.01, kind="normal-map", wavelet="haar", lifting=True)
+    data = bandelets.encode(edge_image, threshold=0.01, lifting=True)  # an image, on request
+    assert unpack(data)[0].lifting == directional.LEVELS
+    assert psnr(edge_image, bandelets.decode(data)) > 40
+    header, streams = unpack(bandelets.encode(edge_image, threshold=0.01, wavelet="haar"))
+    with pytest.raises(FormatError, match="directional lifting"):
+        unpack(pack(replace(header, lifting=2), streams))
+    header, streams = unpack(data)
+    with pytest.raises(FormatError, match="directional levels"):
+        unpack(pack(replace(header, lifting=4), streams))
