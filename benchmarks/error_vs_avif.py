@@ -1,11 +1,11 @@
 """Where bandelets' error is against AVIF's at the same rate, on one normal map.
 
-    python benchmarks/error_vs_avif.py [MAP] [--bpp 0.5]
+    python benchmarks/error_vs_avif.py [MAP] [--bpp 0.5] [--lifting]
 
 (from the repository root, a few seconds; MAP: a PNG normal map, default the generated
 256 x 256 crease map.) Encodes the map with the defaults (``bandelets.encode(kind="normal-map",
-bpp=B)``) and with AVIF as :mod:`bandelets.anchors` drives it, both decoded from their files, and
-prints their squared error summed near the creases (within two pixels of the 10 % largest
+bpp=B)``, with ``lifting=True`` if asked) and with AVIF as :mod:`bandelets.anchors` drives it,
+both decoded from their files, and prints their squared error summed near the creases (within two pixels of the 10 % largest
 gradients) and elsewhere, then the error of each wavelet level (the error images put through
 the CDF 9/7 analysis, x and y channels), as the ratio ours / AVIF's.
 """
@@ -29,10 +29,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("map", nargs="?", help="PNG normal map (default: the generated crease map, 256)")
     parser.add_argument("--bpp", type=float, default=0.5)
+    parser.add_argument("--lifting", action="store_true", help="lift the finest levels along directions")
     args = parser.parse_args()
     x, depth = read_array(args.map, "normal-map") if args.map else (crease_normal_map(256), 0)
     x = unit_vectors(x)
-    ours = bandelets.encode(x, bpp=args.bpp, kind="normal-map", depth=depth)
+    ours = bandelets.encode(x, bpp=args.bpp, kind="normal-map", depth=depth, lifting=args.lifting)
     avif = anchors.encode(x, args.bpp, "avif", "normal-map", depth)
     errors = {
         "ours": bandelets.decode(ours) - x,
