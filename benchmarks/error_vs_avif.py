@@ -5,9 +5,10 @@
 (from the repository root, a few seconds; MAP: a PNG normal map, default the generated
 256 x 256 crease map.) Encodes the map with the defaults (``bandelets.encode(kind="normal-map",
 bpp=B)``, with ``lifting=True`` if asked) and with AVIF as :mod:`bandelets.anchors` drives it,
-both decoded from their files, and prints their squared error summed near the creases (within two pixels of the 10 % largest
-gradients) and elsewhere, then the error of each wavelet level (the error images put through
-the CDF 9/7 analysis, x and y channels), as the ratio ours / AVIF's.
+both decoded from their files, and prints their squared error summed near the creases (within
+two pixels of the 10 % largest gradients) and elsewhere, then the error of each wavelet level
+(the error images put through the CDF 9/7 analysis, x and y channels), as the ratio ours /
+AVIF's.
 """
 
 from __future__ import annotations
