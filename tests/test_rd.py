@@ -51,6 +51,7 @@ def test_rd_on_a_tiny_input_writes_csv_png_and_table(tmp_path, capsys):
         (c, t) for c in ("bandelet", "wavelet", "jpeg2000") for t in (2.0, 4.0)
     ]
     assert imagecodecs.png_decode((tmp_path / "rd.png").read_bytes()).shape[2] in (3, 4)
+    assert imagecodecs.png_decode((tmp_path / "rd-angle.png").read_bytes()).shape[2] in (3, 4)
     assert "bandelets' BD-PSNR gain" in out and "jpeg2000: openjpeg" in out
     assert "n/a" in out  # two points are too few for a BD-PSNR
 

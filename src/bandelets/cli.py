@@ -473,7 +473,7 @@ def _rd(args) -> None:
     print(rd.format_points(rows))
     print()
     print(rd.format_summary(rows, slopes=args.decay))
-    print(f"\nfiles, rd.csv and rd.png in {out}/")
+    print(f"\nfiles, rd.csv and rd.png (and rd-angle.png for normal maps) in {out}/")
 
 
 def _show(args) -> None:

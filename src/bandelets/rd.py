@@ -260,7 +260,8 @@ def run(
 ) -> list[dict]:
     """Measure every codec at every rate on every source.
 
-    Writes the files under ``out/INPUT/``, then ``out/rd.csv`` and ``out/rd.png``. A point
+    Writes the files under ``out/INPUT/``, then ``out/rd.csv``, ``out/rd.png`` and, for normal
+    maps, ``out/rd-angle.png``. A point
     a codec cannot reach (a target below its smallest file) is skipped with a warning.
     The sources are all images (rates in bits per pixel) or all meshes (bits per vertex).
 
@@ -291,6 +292,8 @@ def run(
     _write_csv(rows, out / "rd.csv", _MESH_COLUMNS if any(meshes) else _COLUMNS + _ANGLE_COLUMNS)
 
     rd_figure(rows, out / "rd.png")
+    if any("angle_p99" in r for r in rows):  # normal maps: their users judge in degrees
+        rd_figure(rows, out / "rd-angle.png", value="angle_p99")
     return rows
 
 
