@@ -6,6 +6,7 @@ Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -20,6 +21,9 @@ from .bitstream import (
     HEADER_BYTES,
     MAX_MEMORY,
     MAX_RESTORATION,
+    MAX_THRESHOLD,
+    MAX_WORK,
+    MIN_THRESHOLD,
     FormatError,
     Header,
     Kind,
@@ -33,7 +37,7 @@ from .coding import code_image, new_coders
 from .decoder import decode, restorations
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
-from .memory import check_memory
+from .memory import check_memory, restoration_work
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
 from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, wavelet_coefficients
@@ -149,6 +153,7 @@ def encode(
     restore: bool = True,
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
+    max_work: int = MAX_WORK,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -194,10 +199,21 @@ def encode(
         Progress bar during rate control.
     max_memory : int
         Refuse (``ValueError``) an image whose encoding would need more than this many bytes.
+    max_work : int
+        Restore for no more iterations than a decoder's ``max_work`` allows
+        (:func:`bandelets.memory.check_work`): with the default, the file decodes within the
+        default limits of :func:`bandelets.decode`.
 
     Returns
     -------
     bytes
+
+    Raises
+    ------
+    ValueError
+        An unusable image, option or target (an image a default decoder would refuse included).
+    TypeError
+        A target that is not a real number (``bpp="1"``).
 
     Examples
     --------
@@ -220,6 +236,7 @@ def encode(
         restore=restore,
         progress=progress,
         max_memory=max_memory,
+        max_work=max_work,
     )
     return encode_with_stats(array, options, bpp=bpp, threshold=threshold, psnr=psnr).data
 
@@ -243,6 +260,9 @@ def encode_with_stats(
     targets = [v for v in (bpp, threshold, psnr) if v is not None]
     if len(targets) != 1:
         raise ValueError("give exactly one of bpp, threshold or psnr")
+    if not isinstance(targets[0], numbers.Real):
+        name = "bpp" if bpp is not None else "threshold" if threshold is not None else "psnr"
+        raise TypeError(f"{name} must be a number, got {type(targets[0]).__name__} {targets[0]!r}")
     if threshold is not None:
         check_threshold(threshold)
     levels = max_levels(x.shape[:2])
@@ -265,7 +285,7 @@ def encode_with_stats(
             transform=options.transform,
             wavelet=options.wavelet,
             levels=levels,
-            threshold=t,
+            threshold=max(t, MIN_THRESHOLD),  # rate control's exp(log T) may round below it
             depth=options.depth,
             transform_1d=options.transform_1d,
             **geometry,
@@ -273,11 +293,19 @@ def encode_with_stats(
         return encode_at_threshold(coefficients, header)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
-    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
+    # Above every coefficient, within the thresholds a file may hold: an image of zeros (or of
+    # values below MIN_THRESHOLD) is coded at MIN_THRESHOLD, as zeros; values too large for
+    # MAX_THRESHOLD are refused by the quantizer.
+    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0))
+    t_max = min(max(t_max, MIN_THRESHOLD), MAX_THRESHOLD)
     reference = x[..., 0] if x.shape[2] == 1 else x
 
     def finished(encoded: Encoded) -> Encoded:
-        done = _with_restoration(encoded, reference, max_memory) if options.restore else encoded
+        done = (
+            _with_restoration(encoded, reference, max_memory, options.max_work)
+            if options.restore
+            else encoded
+        )
         return replace(done, trees=None, bins=None)  # only the restoration's choice needed them
 
     if threshold is not None:
@@ -292,22 +320,29 @@ def encode_with_stats(
                 f"{HEADER_BYTES} bytes of header"
             )
         model = ratecontrol.size_model(magnitudes)
-        return finished(ratecontrol.for_size(encode_at, target, t_max, model, options.progress))
-    if not np.isfinite(psnr):
-        raise ValueError(f"psnr must be a finite number, got {psnr}")
+        return finished(
+            ratecontrol.for_size(encode_at, target, t_max, model, options.progress, MIN_THRESHOLD)
+        )
+    if not (np.isfinite(psnr) and psnr > 0):
+        raise ValueError(f"psnr must be a positive number, got {psnr}")
     # Start where a uniform quantizer's error would meet the target.
     t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
 
     def quality(encoded: Encoded) -> float:
         if encoded.psnr is not None:  # measured on the restored image, as decode returns it
             return encoded.psnr
-        # Our own file: only the caller's memory limit applies, not the limits on foreign files.
-        decoded = decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
+        decoded = decode(encoded.data, max_memory=max_memory, max_work=options.max_work)
         return metrics.psnr(reference, decoded, kind)
 
     # Each try is restored: the target is met by the restored image, with the smallest file.
     return ratecontrol.for_quality(
-        lambda t: finished(encode_at(t)), quality, float(psnr), t_max, t_guess, options.progress
+        lambda t: finished(encode_at(t)),
+        quality,
+        float(psnr),
+        t_max,
+        t_guess,
+        options.progress,
+        MIN_THRESHOLD,
     )
 
 
@@ -315,21 +350,23 @@ def encode_with_stats(
 _RESTORATION_PATIENCE = 10
 
 
-def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int) -> Encoded:
+def _with_restoration(encoded: Encoded, reference: np.ndarray, max_memory: int, max_work: int) -> Encoded:
     """``encoded`` with the number of restoration iterations that decodes closest to
-    ``reference`` (the image as :func:`decode` should return it) written into its header."""
+    ``reference`` (the image as :func:`decode` should return it) written into its header: at
+    most as many as ``max_work`` allows."""
     header = encoded.header
     try:
         check_memory(replace(header, restoration=1), max_memory)
     except FormatError:  # the decoder could not afford it either
         return encoded
+    most = min(MAX_RESTORATION, max_work // restoration_work(replace(header, restoration=1)))
     best, best_psnr = 0, -np.inf
     measure = metrics.psnr_of_channels(reference, header.kind)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins)):
         value = measure(channels)
         if value > best_psnr:
             best, best_psnr = n, value
-        if n == MAX_RESTORATION or n - best >= _RESTORATION_PATIENCE:
+        if n == most or n - best >= _RESTORATION_PATIENCE:
             break
     if best == 0:
         return replace(encoded, psnr=best_psnr)
@@ -361,5 +398,5 @@ def _best_of_wavelets(array, options: EncodeOptions, *, bpp, threshold, psnr) ->
     kind = options.kind
     x = check_image(array, kind, options.max_memory)
     reference = metrics.unit_vectors(x) if kind == "normal-map" else (x[..., 0] if x.shape[2] == 1 else x)
-    limits = dict(max_memory=options.max_memory, max_side=2**32, max_samples=2**64)
+    limits = dict(max_memory=options.max_memory, max_work=options.max_work)
     return max(files, key=lambda f: metrics.psnr(reference, decode(f.data, **limits), kind))

@@ -132,7 +132,14 @@ def size_model(magnitudes: np.ndarray) -> Callable[[float], float]:
     return model
 
 
-def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callable, progress: bool = False):
+def for_size(
+    encode_at: Callable,
+    target_bytes: int,
+    t_max: float,
+    model: Callable,
+    progress: bool = False,
+    t_min: float = 0.0,
+):
     """Largest file of at most ``target_bytes`` bytes, by a model-guided secant search on ``log T``.
 
     Parameters
@@ -147,11 +154,13 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
         search starts where it meets the target and steps by it.
     progress : bool
         Progress bar (on a terminal only).
+    t_min : float
+        The smallest threshold to try (at most ``t_max``).
 
     Returns
     -------
     The ``encode_at`` result kept: within ``SIZE_TOLERANCE`` below the target, unless even
-    ``1e-7 t_max`` gives a smaller file (then that one).
+    ``max(1e-7 t_max, t_min)`` gives a smaller file (then that one).
 
     Raises
     ------
@@ -159,7 +168,7 @@ def for_size(encode_at: Callable, target_bytes: int, t_max: float, model: Callab
         When even the smallest possible file is larger than the target.
     """
     best = None
-    floor = math.log(_SMALLEST * t_max)
+    floor = math.log(max(_SMALLEST * t_max, t_min))
     goal = math.log((1 - SIZE_TOLERANCE / 2) * target_bytes)
 
     def measure(x):
@@ -192,21 +201,23 @@ def for_quality(
     t_max: float,
     t_guess: float,
     progress: bool = False,
+    t_min: float = 0.0,
 ):
     """Smallest file whose ``quality(file) >= target`` (a PSNR in dB), by a secant search.
 
     ``encode_at(T)`` returns an encoded file (with its bytes in ``.data``), which ``quality``
     is given whole: the encoder may already know the file's PSNR.
 
-    Stops when the kept file is within 0.05 dB above the target or ``T`` is pinned.
+    Stops when the kept file is within 0.05 dB above the target, when ``t_max`` (the smallest
+    file) meets it, or when ``T`` is pinned.
 
     Raises
     ------
     ValueError
-        When even ``1e-7 t_max`` does not reach the target.
+        When even ``max(1e-7 t_max, t_min)`` does not reach the target.
     """
     best = None
-    floor = math.log(_SMALLEST * t_max)
+    floor = math.log(max(_SMALLEST * t_max, t_min))
 
     def measure(x):
         nonlocal best
@@ -216,7 +227,8 @@ def for_quality(
             best = result
         if q < target and x <= floor:
             raise ValueError(f"target PSNR of {target:g} dB cannot be reached (best {q:.2f} dB)")
-        return q, target <= q < target + 0.05, q >= target
+        done = target <= q < target + 0.05 or (q >= target and x >= math.log(t_max))
+        return min(q, target + 100.0), done, q >= target  # an exact file (inf dB) steers as a good one
 
     with tqdm(desc="rate control", unit="encode", disable=not progress, leave=False) as bar:
         # PSNR falls by about 20 log10(e) = 8.7 dB per unit of log T.
