@@ -142,9 +142,9 @@ MAX_SAMPLES = 2**28
 MAX_MEMORY = 2 * 2**30
 #: Most restoration work the decoder (and the encoder) accepts by default
 #: (:func:`bandelets.memory.restoration_work`): all 100 iterations up to 1024 x 1024 x 2 samples,
-#: 31 at 2048 x 2048 x 2. The slowest file it lets through took 65 s of CPU time
-#: (``benchmarks/worst_decode.py``, 2048 x 2048 x 1 restored 63 times, 240 ns per sample and
-#: iteration; 1024 x 1024 x 1 restored 100 times: 15.5 s).
+#: 31 at 2048 x 2048 x 2. The slowest file it lets through took 17.5 s of CPU time
+#: (``benchmarks/worst_decode.py``, 2048 x 2048 x 1 restored 63 times, 65 ns per sample and
+#: iteration; 1024 x 1024 x 1 restored 100 times: 5.2 s).
 MAX_WORK = 2**28
 #: Range of the threshold a file may hold: the restoration's smoothing, ``(0.01 T)**2``, stays a
 #: normal float, the squares of the largest values (``2**30 T``) stay finite, and no image in any

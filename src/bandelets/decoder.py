@@ -50,7 +50,7 @@ def decode(
     max_work : int
         Refuse a file asking for more restoration work than this, iterations times padded
         samples (:func:`bandelets.memory.restoration_work`): the default, 2**28, is at most
-        about a minute of CPU time (``benchmarks/worst_decode.py``).
+        about 20 s of CPU time (``benchmarks/worst_decode.py``).
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
 
