@@ -15,7 +15,7 @@ Layout (little endian)::
     11      1     1D transform along the directions: TRANSFORM_1D_CODES (0 haar, 1 alpert2)
     12      4     height
     16      4     width
-    20      8     threshold T (float64)
+    20      8     threshold T (float64, MIN_THRESHOLD to MAX_THRESHOLD)
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`)
     41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
@@ -97,6 +97,10 @@ __all__ = [
     "MAX_SIDE",
     "MAX_SAMPLES",
     "MAX_MEMORY",
+    "MAX_WORK",
+    "MIN_THRESHOLD",
+    "MAX_THRESHOLD",
+    "streams_offset",
     "FormatError",
     "HEADER_BYTES",
     "Header",
@@ -160,6 +164,16 @@ MAX_SAMPLES = 2**28
 #: Largest working set, in bytes, the decoder (and the encoder) accepts by default
 #: (:mod:`bandelets.memory`).
 MAX_MEMORY = 2 * 2**30
+#: Most restoration work the decoder (and the encoder) accepts by default
+#: (:func:`bandelets.memory.restoration_work`): all 100 iterations up to 1024 x 1024 x 2 samples,
+#: 31 at 2048 x 2048 x 2. The slowest file it lets through took 17.5 s of CPU time
+#: (``benchmarks/worst_decode.py``, 2048 x 2048 x 1 restored 63 times, 65 ns per sample and
+#: iteration; 1024 x 1024 x 1 restored 100 times: 5.2 s).
+MAX_WORK = 2**28
+#: Range of the threshold a file may hold: the restoration's smoothing, ``(0.01 T)**2``, stays a
+#: normal float, the squares of the largest values (``2**30 T``) stay finite, and no image in any
+#: unit needs a finer or a coarser step.
+MIN_THRESHOLD, MAX_THRESHOLD = 1e-100, 1e100
 
 _FIXED = struct.Struct("<4sBBBBBBBBIId3IBB")
 #: Size of the smallest possible file: the fixed header and the CRC.
@@ -208,6 +222,12 @@ def implied_options(kind: str, channels: int) -> dict:
     if kind == "normal-map" and channels == 3:
         return {"frames": True, "normal_weight": NORMAL_MAP_WEIGHT}
     return {}
+
+
+def streams_offset(kind: str) -> int:
+    """Offset of the first stream in a file of ``kind`` (the fixed header, and the options of a
+    geometry image)."""
+    return _FIXED.size + (_GEOMETRY.size if kind == "geometry-image" else 0)
 
 
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
@@ -302,7 +322,7 @@ def unpack(
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
     wavelet, along = _WAVELET_OF.get(wavelet_code), _TRANSFORM_1D_OF.get(along_code)
-    start = _FIXED.size + (_GEOMETRY.size if kind == "geometry-image" else 0)
+    start = streams_offset(kind)
     checks = [
         (kind is not None, f"unknown kind code {kind_code}"),
         (
@@ -326,7 +346,7 @@ def unpack(
             height * width * channels <= max_samples,
             f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
         ),
-        (math.isfinite(threshold) and threshold > 0, f"bad threshold {threshold}"),
+        (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
         (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (

@@ -14,6 +14,7 @@ import contextlib
 import json
 import os
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -286,9 +287,25 @@ def _check_output(input_path: str, output: str, force: bool) -> None:
         raise ValueError(f"{output}: already exists (use --force to overwrite)")
     if not out.parent.exists() and str(out.parent):
         raise ValueError(f"{output}: folder {out.parent} does not exist")
+    if out.is_dir():
+        raise ValueError(f"{output}: is a folder")
+    try:  # before any work: the output is written there, through a temporary file
+        with tempfile.TemporaryFile(dir=out.parent):
+            pass
+    except OSError as err:
+        raise ValueError(f"{output}: cannot write in folder {out.parent} ({err.strerror})") from None
+
+
+def _check_targets(args) -> None:
+    """Refuse a rate or quality target that is not a positive number, before reading anything."""
+    for option in ("bpp", "threshold", "psnr", "max_angle", "bits_per_vertex", "bytes"):
+        value = getattr(args, option, None)
+        if value is not None and not 0 < value < float("inf"):
+            raise _UsageError(f"--{option.replace('_', '-')} must be a positive number, got {value:g}")
 
 
 def _encode(args) -> None:
+    _check_targets(args)
     _check_input(args.input)
     _check_output(args.input, args.output, args.force)
     if Path(args.output).suffix.lower() in IMAGE_SUFFIXES:
@@ -297,7 +314,7 @@ def _encode(args) -> None:
     start = time.perf_counter()
     from .files import read_array
 
-    array, depth = read_array(args.input, args.kind)
+    array, depth = read_array(args.input, args.kind, args.max_memory)
     from .encoder import encode_with_stats
     from .files import write_atomic
     from .options import EncodeOptions
@@ -489,6 +506,7 @@ def _show(args) -> None:
 
 
 def _mesh_encode(args) -> None:
+    _check_targets(args)
     _check_input(args.input)
     _check_output(args.input, args.output, args.force)
     _working()
@@ -533,6 +551,8 @@ def _geometry_image(args) -> None:
         _check_output(args.input, output, args.force)
         if Path(output).suffix.lower() not in suffixes:
             raise ValueError(f"{output}: unsupported output format; use {' or '.join(suffixes)}")
+    if args.normals and Path(args.normals).resolve() == Path(args.output).resolve():
+        raise ValueError(f"{args.normals}: --normals would overwrite the positions output")
     _working()
     from .files import write_array
     from .surfaces.codec import load_mesh, make_geometry_image
@@ -541,7 +561,11 @@ def _geometry_image(args) -> None:
         image = make_geometry_image(load_mesh(args.input), args.size)
     write_array(args.output, image.positions, "geometry-image", 0)
     if args.normals:
-        write_array(args.normals, image.normals, "normal-map", 16)
+        try:
+            write_array(args.normals, image.normals, "normal-map", 16)
+        except BaseException:  # both outputs or neither
+            Path(args.output).unlink(missing_ok=True)
+            raise
 
 
 def _batch(args) -> int:

@@ -14,9 +14,9 @@ import numpy as np
 
 from . import directional, entropy, frames, metrics, restoration
 from .bandeletize import bandeletize, debandeletize
-from .bitstream import MAX_MEMORY, FormatError, Header, unpack
+from .bitstream import MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
 from .coding import code_image, code_lifting, new_coders
-from .memory import check_memory
+from .memory import check_memory, check_work
 from .quantize import dequantize
 from .transform import apply_trees
 from .wavelets import padded_shape, wavedec, waverec
@@ -31,7 +31,9 @@ __all__ = [
 ]
 
 
-def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
+def decode(
+    data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, max_work: int = MAX_WORK, **limits
+) -> np.ndarray:
     """Decode a .bdl file.
 
     Parameters
@@ -44,6 +46,10 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
     max_memory : int
         Refuse a file whose decoding needs more than this many bytes (estimated from its
         header, see :func:`bandelets.memory.check_memory`; default 2 GiB).
+    max_work : int
+        Refuse a file asking for more restoration work than this, iterations times padded
+        samples (:func:`bandelets.memory.restoration_work`): the default, 2**28, is at most
+        about 20 s of CPU time (``benchmarks/worst_decode.py``).
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
 
@@ -55,7 +61,9 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
     Raises
     ------
     FormatError
-        For any corrupt, truncated or unsupported file.
+        For any corrupt, truncated or unsupported file, or one above the limits.
+    TypeError
+        When ``data`` is not bytes (or another buffer).
 
     Examples
     --------
@@ -66,8 +74,12 @@ def decode(data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, *
     >>> decoded.shape, bool(np.abs(decoded - image).max() < 0.05)
     ((32, 48), True)
     """
-    header, streams = unpack(bytes(data), **limits)
-    return decode_parsed(header, streams, restore=restore, max_memory=max_memory)
+    try:
+        data = bytes(memoryview(data))
+    except TypeError:
+        raise TypeError(f"decode takes the bytes of a .bdl file, not {type(data).__name__}") from None
+    header, streams = unpack(data, **limits)
+    return decode_parsed(header, streams, restore=restore, max_memory=max_memory, max_work=max_work)
 
 
 def decode_parsed(
@@ -76,11 +88,13 @@ def decode_parsed(
     *,
     restore: bool = True,
     max_memory: int = MAX_MEMORY,
+    max_work: int = MAX_WORK,
 ) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack` (options of :func:`decode`)."""
     if not restore:
         header = replace(header, restoration=0)
     check_memory(header, max_memory)
+    check_work(header, max_work)
     trees, quantized, lifting = decoded_bins(header, streams)
     channels = next(islice(restorations(header, trees, quantized, lifting), header.restoration, None))
     return decoded_image(channels, header)

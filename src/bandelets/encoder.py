@@ -6,6 +6,7 @@ Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -20,6 +21,9 @@ from .bitstream import (
     HEADER_BYTES,
     MAX_MEMORY,
     MAX_RESTORATION,
+    MAX_THRESHOLD,
+    MAX_WORK,
+    MIN_THRESHOLD,
     FormatError,
     Header,
     Kind,
@@ -34,7 +38,7 @@ from .decoder import decode, decoded_image, restorations
 from .files import as_read
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
-from .memory import check_memory
+from .memory import check_memory, restoration_work
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
 from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
@@ -162,6 +166,7 @@ def encode(
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
     xy: bool = False,
+    max_work: int = MAX_WORK,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -220,10 +225,21 @@ def encode(
     xy : bool
         Normal maps: ``array`` holds ``x, y`` and an unused blue (see :mod:`bandelets.normalmaps`,
         which also says how two channels and integer samples are read).
+    max_work : int
+        Restore for no more iterations than a decoder's ``max_work`` allows
+        (:func:`bandelets.memory.check_work`): with the default, the file decodes within the
+        default limits of :func:`bandelets.decode`.
 
     Returns
     -------
     bytes
+
+    Raises
+    ------
+    ValueError
+        An unusable image, option or target (an image a default decoder would refuse included).
+    TypeError
+        A target that is not a real number (``bpp="1"``).
 
     Examples
     --------
@@ -248,6 +264,7 @@ def encode(
         progress=progress,
         max_memory=max_memory,
         xy=xy,
+        max_work=max_work,
     )
     return encode_with_stats(
         array, options, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle
@@ -279,6 +296,9 @@ def encode_with_stats(
         x = metrics.unit_vectors(x)
     if sum(v is not None for v in targets.values()) != 1:
         raise ValueError("give exactly one of bpp, threshold, psnr or max_angle")
+    name, value = next((k, v) for k, v in targets.items() if v is not None)
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
     if max_angle is not None and kind != "normal-map":
         raise ValueError("max_angle applies to normal maps only")
     if threshold is not None:
@@ -306,7 +326,7 @@ def encode_with_stats(
             transform=options.transform,
             wavelet=options.wavelet,
             levels=levels,
-            threshold=t,
+            threshold=max(t, MIN_THRESHOLD),  # rate control's exp(log T) may round below it
             depth=depth,
             transform_1d=options.transform_1d,
             **geometry,
@@ -316,7 +336,11 @@ def encode_with_stats(
         return encode_at_threshold(coefficients, header, lifting)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
-    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0)) + 1e-300
+    # Above every coefficient, within the thresholds a file may hold: an image of zeros (or of
+    # values below MIN_THRESHOLD) is coded at MIN_THRESHOLD, as zeros; values too large for
+    # MAX_THRESHOLD are refused by the quantizer.
+    t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0))
+    t_max = min(max(t_max, MIN_THRESHOLD), MAX_THRESHOLD)
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     # What the user gets: the decoded values written at the source's depth.
     measure_psnr = metrics.psnr_against(reference, kind)
@@ -331,13 +355,15 @@ def encode_with_stats(
         if encoded.decoded is not None:  # the restored image, as decode returns it
             return encoded.decoded
         # Our own file: only the caller's memory limit applies, not the limits on foreign files.
-        return decode(encoded.data, max_memory=max_memory, max_side=2**32, max_samples=2**64)
+        return decode(
+            encoded.data, max_memory=max_memory, max_work=options.max_work, max_side=2**32, max_samples=2**64
+        )
 
     with Progress(options.progress) as line:
 
         def finished(encoded: Encoded) -> Encoded:
             if options.restore:
-                encoded = _with_restoration(encoded, measure_channels, max_memory, line, keep)
+                encoded = _with_restoration(encoded, measure_channels, options, line, keep)
             elif measured:
                 out = decoded(encoded)
                 encoded = replace(encoded, psnr=measure(out), decoded=out)
@@ -365,7 +391,7 @@ def encode_with_stats(
             if lifting_levels:
                 t_first = ratecontrol.first_threshold(target, t_max, model)
                 coefficients, lifting = _lifted(coded, levels, lifting_levels, t_first)
-            return finished(ratecontrol.for_size(encode_at, target, t_max, model, line))
+            return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
             if not (np.isfinite(max_angle) and 0 < max_angle < 180):
                 raise ValueError(f"max_angle must be a number of degrees from 0 to 180, got {max_angle}")
@@ -379,8 +405,8 @@ def encode_with_stats(
             def label(q: float) -> str:
                 return f"p99 angle of {10 ** (-q / 20):.3g} degrees"
         else:
-            if not np.isfinite(psnr):
-                raise ValueError(f"psnr must be a finite number, got {psnr}")
+            if not (np.isfinite(psnr) and psnr > 0):
+                raise ValueError(f"psnr must be a positive number, got {psnr}")
             goal = float(psnr)
             # Start where a uniform quantizer's error would meet the target.
             t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
@@ -395,7 +421,7 @@ def encode_with_stats(
             coefficients, lifting = _lifted(coded, levels, lifting_levels, t_guess)
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
-            lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label
+            lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label, MIN_THRESHOLD
         )
 
 
@@ -418,15 +444,18 @@ def _lifting_levels(options: EncodeOptions, levels: int, geometry: dict) -> int:
 _RESTORATION_PATIENCE = 10
 
 
-def _with_restoration(encoded: Encoded, measure, max_memory: int, line: Progress, keep: bool) -> Encoded:
+def _with_restoration(
+    encoded: Encoded, measure, options: EncodeOptions, line: Progress, keep: bool
+) -> Encoded:
     """``encoded`` with the number of restoration iterations whose decoded channels score best by
-    ``measure`` (:func:`bandelets.metrics.psnr_of_channels`) written into its header, that score
-    and (``keep``) that decoded image."""
+    ``measure`` (:func:`bandelets.metrics.psnr_of_channels`) written into its header (at most as
+    many as ``options.max_work`` allows a decoder), that score and (``keep``) that decoded image."""
     header = encoded.header
     try:
-        check_memory(replace(header, restoration=1), max_memory)
+        check_memory(replace(header, restoration=1), options.max_memory)
     except FormatError:  # the decoder could not afford it either
         return encoded
+    most = min(MAX_RESTORATION, options.max_work // restoration_work(replace(header, restoration=1)))
     best, best_psnr, best_channels = 0, -np.inf, None
     line.stage("restoration search", restart=True)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins, encoded.lifting)):
@@ -435,7 +464,7 @@ def _with_restoration(encoded: Encoded, measure, max_memory: int, line: Progress
         if value > best_psnr:
             # The iterations work in place: a copy of the best, when its image is wanted.
             best, best_psnr, best_channels = n, value, channels.copy() if keep else None
-        if n == MAX_RESTORATION or n - best >= _RESTORATION_PATIENCE:
+        if n == most or n - best >= _RESTORATION_PATIENCE:
             break
     line.stage("rate control")
     best_output = None if best_channels is None else decoded_image(best_channels, header)

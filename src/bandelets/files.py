@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import os
+import struct
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .formats import read_exr, read_tiff, write_exr, write_tiff
+from .memory import MAX_MEMORY, check_encodable
 
 __all__ = [
     "SUFFIXES",
@@ -89,11 +91,15 @@ def integer_samples(values: np.ndarray, kind: str, depth: int = 0) -> tuple[np.n
     return from_samples(values, kind, bits), bits
 
 
-def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
+def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY) -> tuple[np.ndarray, int]:
     """Read a PNG, .npy, EXR or TIFF file (:data:`SUFFIXES`).
 
     Integer samples of PNG and TIFF files (and ``uint8`` / ``uint16`` .npy normal maps) are
     mapped to [0, 1], or [-1, 1] for a normal map; floats are taken as they are.
+
+    An image the encoder would refuse (:func:`bandelets.memory.check_encodable` with
+    ``max_memory``) is refused from its header, before its samples are decoded: a few hundred
+    kilobytes of PNG can hold gigabytes of samples.
 
     Returns
     -------
@@ -110,14 +116,23 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
     check_suffix(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
+
+    def check(shape: tuple[int, ...]) -> None:
+        if len(shape) in (2, 3):
+            try:
+                check_encodable(*shape[:2], shape[2] if len(shape) == 3 else 1, max_memory)
+            except ValueError as err:
+                raise ValueError(f"{path}: {err}") from None
+
     suffix = path.suffix.lower()
     if suffix == ".npy":
         try:
-            array = np.load(path, allow_pickle=False)
+            array = np.load(path, mmap_mode="r", allow_pickle=False)  # the header: no sample read yet
         except (OSError, ValueError, EOFError) as err:
             raise ValueError(f"{path}: not a readable .npy file ({err})") from None
         if not np.issubdtype(array.dtype, np.number) or np.iscomplexobj(array):
             raise ValueError(f"{path}: expected a real numeric array, got dtype {array.dtype}")
+        check(array.shape)
         try:
             array, depth = integer_samples(array, kind)
         except ValueError as err:
@@ -130,8 +145,10 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
         return (from_samples(pixels, kind, depth) if depth else pixels.astype(np.float64)), depth
     import imagecodecs
 
+    data = path.read_bytes()
+    check(_png_shape(data, path))
     try:
-        pixels = imagecodecs.png_decode(path.read_bytes())
+        pixels = imagecodecs.png_decode(data)
     except Exception as err:  # imagecodecs raises its own error types for bad data
         raise ValueError(f"{path}: not a readable PNG file ({err})") from None
     if pixels.dtype not in (np.uint8, np.uint16):
@@ -145,11 +162,28 @@ def read_array(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, int]:
     return from_samples(pixels, kind, depth), depth
 
 
+#: Channels of each PNG colour type (a palette decodes to RGB or RGBA, counted as RGB).
+_PNG_CHANNELS = {0: 1, 2: 3, 3: 3, 4: 1, 6: 3}
+
+
+def _png_shape(data: bytes, path: Path) -> tuple[int, int, int]:
+    """Height, width and channels (alpha dropped) a PNG file's header announces."""
+    if len(data) < 26 or data[:8] != b"\x89PNG\r\n\x1a\n" or data[12:16] != b"IHDR":
+        raise ValueError(f"{path}: not a readable PNG file (no PNG header)")
+    width, height, depth, colour = struct.unpack_from(">IIBB", data, 16)
+    if colour not in _PNG_CHANNELS or depth not in (1, 2, 4, 8, 16):
+        raise ValueError(f"{path}: not a readable PNG file (bit depth {depth}, colour type {colour})")
+    return height, width, _PNG_CHANNELS[colour]
+
+
 def write_atomic(path: str | os.PathLike, data: bytes | Callable[[str], None]) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename
     (``data`` may be a function that writes a file at the path it is given)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    except OSError as err:  # named after the output, not the temporary file
+        raise OSError(err.errno, err.strerror, str(path)) from None
     try:
         with os.fdopen(fd, "wb") as f:
             if not callable(data):
@@ -161,8 +195,10 @@ def write_atomic(path: str | os.PathLike, data: bytes | Callable[[str], None]) -
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(err, OSError) and err.filename == tmp:
+            raise OSError(err.errno, err.strerror, str(path)) from None
         raise
 
 

@@ -1,17 +1,27 @@
-"""Estimated working sets of the encoder and the decoder, and the limit a decoder enforces.
+"""Estimated working sets and work of the encoder and the decoder, and the limits a decoder enforces.
 
 A few bytes of range-coded zeros can legitimately describe a huge image, so the size of a .bdl
 file says nothing about the work it asks for: the decoder estimates it from the header
-(:func:`check_memory`) and refuses what exceeds ``max_memory``, the encoder likewise refuses an
-image before any work on it (:func:`bandelets.options.check_image`).
+(:func:`check_memory`, :func:`check_work`) and refuses what exceeds ``max_memory`` or
+``max_work``; the encoder likewise refuses an image before any work on it
+(:func:`check_encodable`), and one whose file the default decoder would refuse.
 """
 
 from __future__ import annotations
 
-from .bitstream import MAX_LEVELS, MAX_MEMORY, FormatError, Header
+from .bitstream import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, Header
 from .wavelets import padded_shape
 
-__all__ = ["MAX_MEMORY", "check_memory", "decoder_memory", "encoder_memory"]
+__all__ = [
+    "MAX_MEMORY",
+    "MAX_WORK",
+    "check_encodable",
+    "check_memory",
+    "check_work",
+    "decoder_memory",
+    "encoder_memory",
+    "restoration_work",
+]
 
 # Working set per padded pixel and per padded sample, measured with tracemalloc (peak of the
 # numpy allocations, JIT compiled beforehand) on generated normal maps and their first channel:
@@ -32,6 +42,10 @@ _DECODE_FRAMES_PER_PIXEL = 48
 # and 1024 x 1024 x 1, 237 B/pixel for 512 x 512 x 3, against 54 and 90 without.
 _DECODE_RESTORATION_PER_SAMPLE = 56
 _ENCODE_FIXED, _ENCODE_PER_SAMPLE = 160 * 2**20, 96
+# The fixed cost of a restoration iteration, in samples: the Python around the transforms
+# (32 x 32 x 3 with local frames restores at 15 to 25 ms an iteration, 512 x 512 x 2 at
+# 300 to 400 ns a sample, in one run on the 2-core machine).
+_ITERATION_SAMPLES = 2**16
 
 
 def decoder_memory(
@@ -49,6 +63,25 @@ def encoder_memory(height: int, width: int, channels: int) -> int:
     """Estimated peak bytes the encoder allocates for an image of this size."""
     rows, cols = padded_shape((height, width), MAX_LEVELS)
     return _ENCODE_FIXED + rows * cols * channels * _ENCODE_PER_SAMPLE
+
+
+def check_encodable(height: int, width: int, channels: int, max_memory: int = MAX_MEMORY) -> None:
+    """Raise ``ValueError`` for an image the encoder refuses before any work on it: one whose
+    encoding needs more than ``max_memory`` bytes (:func:`encoder_memory`), or whose file the
+    default decoder would refuse (a side above :data:`~bandelets.bitstream.MAX_SIDE`, more samples
+    than :data:`~bandelets.bitstream.MAX_SAMPLES`)."""
+    need = encoder_memory(height, width, channels)
+    if need > max_memory:
+        raise ValueError(
+            f"encoding a {width} x {height} x {channels} image needs about "
+            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB "
+            "(--max-memory, max_memory)"
+        )
+    if max(height, width) > MAX_SIDE or height * width * channels > MAX_SAMPLES:
+        raise ValueError(
+            f"a {width} x {height} x {channels} image exceeds what decoders accept by default "
+            f"({MAX_SIDE} pixels per side, {MAX_SAMPLES} samples)"
+        )
 
 
 def check_memory(header: Header, max_memory: int = MAX_MEMORY) -> None:
@@ -70,4 +103,24 @@ def check_memory(header: Header, max_memory: int = MAX_MEMORY) -> None:
             f"decoding this {header.width} x {header.height} x {header.channels} image needs about "
             f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB "
             "(--max-memory, max_memory)"
+        )
+
+
+def restoration_work(header: Header) -> int:
+    """The restoration work ``header`` asks for: iterations times the padded samples, plus
+    65,536 (the fixed cost of an iteration)."""
+    rows, cols = padded_shape((header.height, header.width), header.levels)
+    return (rows * cols * header.channels + _ITERATION_SAMPLES) * header.restoration
+
+
+def check_work(header: Header, max_work: int = MAX_WORK) -> None:
+    """Raise :class:`~bandelets.bitstream.FormatError` if ``header`` asks for more restoration work
+    than ``max_work`` (:func:`restoration_work`): the decoding time, unlike the file size, grows
+    with it."""
+    work = restoration_work(header)
+    if work > max_work:
+        raise FormatError(
+            f"restoring this {header.width} x {header.height} x {header.channels} image for "
+            f"{header.restoration} iterations is {work:.3g} sample-iterations of work, above the limit of "
+            f"{max_work:.3g} (max_work)"
         )

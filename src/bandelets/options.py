@@ -19,7 +19,10 @@ from .bitstream import (
     KINDS,
     MAX_MEMORY,
     MAX_NORMAL_WEIGHT,
+    MAX_THRESHOLD,
+    MAX_WORK,
     MIN_NORMAL_WEIGHT,
+    MIN_THRESHOLD,
     TRANSFORMS,
     TRANSFORMS_1D,
     WAVELETS,
@@ -27,7 +30,7 @@ from .bitstream import (
     Transform1D,
     Wavelet,
 )
-from .memory import encoder_memory
+from .memory import check_encodable
 from .wavelets import check_extension
 
 __all__ = [
@@ -74,6 +77,7 @@ class EncodeOptions:
     progress: bool = False
     max_memory: int = MAX_MEMORY
     xy: bool = False
+    max_work: int = MAX_WORK
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -101,9 +105,10 @@ class EncodeOptions:
 def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
     """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable.
 
-    An image whose encoding would need more than ``max_memory`` bytes
-    (:func:`bandelets.memory.encoder_memory`) is refused before any work on it (a float64
-    array is not copied; another dtype is converted first).
+    An image whose encoding would need more than ``max_memory`` bytes, or whose file the default
+    decoder would refuse, is refused before any work on it
+    (:func:`bandelets.memory.check_encodable`; a float64 array is not copied, another dtype is
+    converted first).
     """
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(KINDS)}")
@@ -119,13 +124,7 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
         raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
     if kind != "image" and x.shape[2] != 3:
         raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
-    need = encoder_memory(*x.shape)
-    if need > max_memory:
-        raise ValueError(
-            f"encoding a {x.shape[1]} x {x.shape[0]} x {x.shape[2]} image needs about "
-            f"{need / 2**20:.0f} MiB, above the limit of {max_memory / 2**20:.0f} MiB "
-            "(--max-memory, max_memory)"
-        )
+    check_encodable(*x.shape, max_memory)
     if not np.all(np.isfinite(x)):
         raise ValueError("input contains NaN or infinite values")
     return x
@@ -143,9 +142,10 @@ def check_options(transform: str, wavelet: str, transform_1d: str, wavelets: tup
 
 
 def check_threshold(threshold: float) -> None:
-    """``ValueError`` unless ``threshold`` is a positive number."""
-    if not (np.isfinite(threshold) and threshold > 0):
-        raise ValueError(f"threshold must be a positive number, got {threshold}")
+    """``ValueError`` unless ``threshold`` is a number a file may hold
+    (:data:`~bandelets.bitstream.MIN_THRESHOLD` to :data:`~bandelets.bitstream.MAX_THRESHOLD`)."""
+    if not MIN_THRESHOLD <= threshold <= MAX_THRESHOLD:
+        raise ValueError(f"threshold must be from {MIN_THRESHOLD:g} to {MAX_THRESHOLD:g}, got {threshold}")
 
 
 def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:

@@ -140,7 +140,12 @@ def first_threshold(target_bytes: int, t_max: float, model: Callable) -> float:
 
 
 def for_size(
-    encode_at: Callable, target_bytes: int, t_max: float, model: Callable, progress: Progress | None = None
+    encode_at: Callable,
+    target_bytes: int,
+    t_max: float,
+    model: Callable,
+    progress: Progress | None = None,
+    t_min: float = 0.0,
 ):
     """Largest file of at most ``target_bytes`` bytes, by a model-guided secant search on ``log T``.
 
@@ -156,11 +161,13 @@ def for_size(
         search starts where it meets the target and steps by it.
     progress : Progress, optional
         Counts the encodings (:class:`bandelets.progress.Progress`).
+    t_min : float
+        The smallest threshold to try (at most ``t_max``).
 
     Returns
     -------
     The ``encode_at`` result kept: within ``SIZE_TOLERANCE`` below the target, unless even
-    ``1e-7 t_max`` gives a smaller file (then that one).
+    ``max(1e-7 t_max, t_min)`` gives a smaller file (then that one).
 
     Raises
     ------
@@ -168,7 +175,7 @@ def for_size(
         When even the smallest possible file is larger than the target.
     """
     best = None
-    floor = math.log(_SMALLEST * t_max)
+    floor = math.log(max(_SMALLEST * t_max, t_min))
     goal = math.log((1 - SIZE_TOLERANCE / 2) * target_bytes)
 
     def measure(x):
@@ -203,6 +210,7 @@ def for_quality(
     t_guess: float,
     progress: Progress | None = None,
     label: Callable[[float], str] = lambda q: f"PSNR of {q:.2f} dB",
+    t_min: float = 0.0,
 ):
     """Smallest file whose ``quality(file) >= target`` (a PSNR in dB), by a secant search.
 
@@ -213,15 +221,15 @@ def for_quality(
 
     Stops when the kept file is within 0.05 dB above the target, when a file comes back that
     was met before (a plateau: the smallest file meets the target, or the quality jumps over it
-    between two files), or when ``T`` is pinned.
+    between two files), when ``t_max`` (the smallest file) meets it, or when ``T`` is pinned.
 
     Raises
     ------
     ValueError
-        When even ``1e-7 t_max`` does not reach the target.
+        When even ``max(1e-7 t_max, t_min)`` does not reach the target.
     """
     best = None
-    floor = math.log(_SMALLEST * t_max)
+    floor = math.log(max(_SMALLEST * t_max, t_min))
     seen = set()
 
     def measure(x):
@@ -238,7 +246,9 @@ def for_quality(
         # plateau (the smallest file, or a step between two files) where no threshold gives more.
         again = (len(result.data), q) in seen
         seen.add((len(result.data), q))
-        return q, target <= q < target + 0.05 or (again and best is not None), q >= target
+        done = target <= q < target + 0.05 or (again and best is not None)
+        done = done or (q >= target and x >= math.log(t_max))
+        return min(q, target + 100.0), done, q >= target  # an exact file (inf dB) steers as a good one
 
     # PSNR falls by about 20 log10(e) = 8.7 dB per unit of log T.
     x0, x_max = math.log(t_guess), math.log(t_max)

@@ -118,7 +118,8 @@ def penalty_gradient(
 @njit(cache=True, nogil=True)
 def _log_weight(squared_norm, smoothing, edge):
     """d(edge log(1 + n / edge))/dn / n, with n = sqrt(squared_norm + smoothing**2)."""
-    n = np.sqrt(squared_norm + smoothing * smoothing)
+    # Never 0, even where smoothing**2 underflows (a threshold below any a file may hold).
+    n = max(np.sqrt(squared_norm + smoothing * smoothing), 1e-150)
     return edge / (n * (edge + n))
 
 

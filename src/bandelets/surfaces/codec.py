@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bitstream import DEFAULT_NORMAL_WEIGHT, unpack
+from ..bitstream import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, unpack
 from ..decoder import decode_parsed
 from ..encoder import encode_with_stats
 from ..options import EncodeOptions
@@ -25,6 +25,7 @@ __all__ = [
     "GeometryImage",
     "SphericalMesh",
     "auto_size",
+    "check_mesh_memory",
     "check_size",
     "MESH_FORMATS",
     "decode_mesh",
@@ -63,6 +64,8 @@ def load_mesh(path: str | os.PathLike):
         raise ValueError(f"{path}: no such file")
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
+    except ImportError:  # an optional dependency trimesh tries for text it cannot decode
+        raise ValueError(f"{path}: not a readable mesh (neither binary nor text)") from None
     except Exception as err:  # trimesh raises many error types for bad files
         raise ValueError(f"{path}: not a readable mesh ({err})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -153,20 +156,23 @@ class GeometryImage:
     distortion: dict
 
 
-def map_to_sphere(mesh, **relaxation) -> SphericalMesh:
+def map_to_sphere(mesh, max_memory: int = MAX_MEMORY, **relaxation) -> SphericalMesh:
     """Check a mesh (closed, manifold, connected, genus 0) and parameterize it on the sphere.
 
     Parameters
     ----------
     mesh : trimesh.Trimesh
+    max_memory : int
+        Refuse a mesh whose parameterization needs more bytes (:func:`.checks.check_memory`).
     **relaxation
         ``max_steps`` and ``tol`` of :func:`.sphere.spherical_parameterization`.
 
     Raises
     ------
     ValueError
-        A mesh that is not closed, manifold, connected and of genus 0.
+        A mesh that is not closed, manifold, connected and of genus 0, or too large.
     """
+    checks.check_memory(len(mesh.faces), max_memory)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     checks.check_genus0(vertices, faces)
@@ -188,7 +194,9 @@ def sample_geometry_image(spherical: SphericalMesh, size: int) -> GeometryImage:
     return GeometryImage(positions, normals, spherical.distortion)
 
 
-def make_geometry_image(mesh, size: int = DEFAULT_SIZE, **relaxation) -> GeometryImage:
+def make_geometry_image(
+    mesh, size: int = DEFAULT_SIZE, max_memory: int = MAX_MEMORY, **relaxation
+) -> GeometryImage:
     """Check, parameterize on the sphere and sample a closed genus-0 mesh.
 
     Parameters
@@ -196,16 +204,18 @@ def make_geometry_image(mesh, size: int = DEFAULT_SIZE, **relaxation) -> Geometr
     mesh : trimesh.Trimesh
     size : int
         Side ``n`` of the image, even, 4 to 4096.
+    max_memory : int
+        Refuse a mesh whose parameterization needs more bytes (:func:`.checks.check_memory`).
     **relaxation
         ``max_steps`` and ``tol`` of :func:`.sphere.spherical_parameterization`.
 
     Raises
     ------
     ValueError
-        Bad size, or a mesh that is not closed, manifold, connected and of genus 0.
+        Bad size, or a mesh that is not closed, manifold, connected and of genus 0, or too large.
     """
     check_size(size)  # before the slow parameterization
-    return sample_geometry_image(map_to_sphere(mesh, **relaxation), size)
+    return sample_geometry_image(map_to_sphere(mesh, max_memory, **relaxation), size)
 
 
 def encode_mesh(
@@ -222,6 +232,7 @@ def encode_mesh(
     restore: bool = False,
     image: np.ndarray | None = None,
     spherical: SphericalMesh | None = None,
+    max_memory: int = MAX_MEMORY,
 ) -> bytes:
     """Compress a closed genus-0 mesh into a .bdl file.
 
@@ -249,6 +260,9 @@ def encode_mesh(
         the size.
     spherical : SphericalMesh, optional
         The parameterization of ``mesh``, if already made (:func:`map_to_sphere`).
+    max_memory : int
+        Refuse (``ValueError``) a mesh whose parameterization, an image whose encoding, or a
+        decoded mesh whose rebuilding (:func:`check_mesh_memory`) needs more bytes.
 
     Returns
     -------
@@ -268,6 +282,7 @@ def encode_mesh(
         normal_weight=normal_weight,
         extension=extension,
         restore=restore,
+        max_memory=max_memory,
     )
     if image is not None:
         if size is not None and size != image.shape[0]:
@@ -282,12 +297,13 @@ def encode_mesh(
         bits = (1.0 if bpp is None else bpp) * size * size
     size = size or auto_size(bits)
     check_size(size)
+    check_mesh_memory(size, max_memory)  # the decoder's limit
     if image is None:
-        image = sample_geometry_image(spherical or map_to_sphere(mesh), size).positions
+        image = sample_geometry_image(spherical or map_to_sphere(mesh, max_memory), size).positions
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
-def decode_mesh(data: bytes):
+def decode_mesh(data: bytes, max_memory: int = MAX_MEMORY):
     """Rebuild the closed mesh of a geometry-image .bdl file.
 
     Returns
@@ -297,8 +313,9 @@ def decode_mesh(data: bytes):
     Raises
     ------
     ValueError
-        A corrupt file (``bandelets.FormatError``), or one that is not a square geometry image
-        of even side.
+        A corrupt file (``bandelets.FormatError``), one that is not a square geometry image
+        of even side, or a mesh whose rebuilding and writing would need more than ``max_memory``
+        bytes (:func:`check_mesh_memory`).
     """
     header, streams = unpack(bytes(data))
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
@@ -306,4 +323,21 @@ def decode_mesh(data: bytes):
             f"not a mesh file: a {header.width} x {header.height} {header.kind} "
             "(expected a square geometry image of even side)"
         )
-    return geometry_image.mesh_from_image(decode_parsed(header, streams))
+    check_mesh_memory(header.width, max_memory)
+    return geometry_image.mesh_from_image(decode_parsed(header, streams, max_memory=max_memory))
+
+
+#: Peak bytes per pixel of a geometry image rebuilt into a mesh and written to a file (peak
+#: resident memory at 1024 x 1024: 548 B/pixel written as OBJ, 269 as PLY), rounded up.
+MESH_BYTES_PER_PIXEL = 640
+
+
+def check_mesh_memory(side: int, max_memory: int = MAX_MEMORY) -> None:
+    """``ValueError`` if the mesh of a ``side x side`` geometry image needs more than ``max_memory``
+    bytes to rebuild and write (:data:`MESH_BYTES_PER_PIXEL`): 1,830 pixels a side by default."""
+    need = MESH_BYTES_PER_PIXEL * side * side
+    if need > max_memory:
+        raise ValueError(
+            f"a mesh of {side} x {side} vertices needs about {need / 2**20:.0f} MiB to rebuild and write, "
+            f"above the limit of {max_memory / 2**20:.0f} MiB (max_memory)"
+        )
