@@ -39,12 +39,16 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from .hierarchy import levels, place
+
 __all__ = ["SphereMap", "area_distortion", "flipped", "spherical_parameterization"]
 
 _WEIGHT_FLOOR = 1e-3  # cotangent weights below this fraction of the median are raised to it
 _PUNCTURE_INRADIUS = 10.0  # the pinned triangle's size in the plane: its outside is a small polar cap
 _WINDOW = 10  # the relaxation stops when its last this many steps gained too little
 _WORK = 1.5e7  # default most relaxation steps times vertices: about 20 s on the 2-core machine
+_COARSEST = 100  # vertices of the coarsest level of the hierarchy
+_CONFORMAL_WEIGHT = 1.0  # weight of tr G beside the stretch term tr G / det G
 
 
 @dataclass(frozen=True)
@@ -147,25 +151,20 @@ def _mobius_centre(points: np.ndarray, masses: np.ndarray, tol: float = 1e-10, m
     return points
 
 
-def _untangle(faces: np.ndarray, points: np.ndarray, max_rounds: int = 50) -> np.ndarray:
-    """Move the vertices of flipped triangles to the mean of their neighbours, adding the
-    vertices of the triangles still flipped each round, until none is (or ``max_rounds``)."""
-    from scipy.sparse import coo_matrix
-
-    n = len(points)
-    i = faces[:, [0, 1, 2, 1, 2, 0]].ravel()
-    j = faces[:, [1, 2, 0, 0, 1, 2]].ravel()
-    adjacency = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n)).tocsr()
-    adjacency.data[:] = 1.0
-    region = np.zeros(n, dtype=bool)
+def _untangle(faces: np.ndarray, points: np.ndarray, laplacian, max_rounds: int = 200) -> np.ndarray:
+    """Move the vertices of flipped triangles to the weighted mean of their neighbours, round
+    after round, until none is flipped (or ``max_rounds``)."""
+    weights = -laplacian.tocsr()
+    weights.setdiag(0)
+    weights.eliminate_zeros()
     for _ in range(max_rounds):
         bad = flipped(faces, points)
         if not bad.any():
             break
-        region[faces[bad].ravel()] = True
-        for _ in range(10):
-            mean = adjacency @ points
-            points = np.where(region[:, None], mean / np.linalg.norm(mean, axis=1, keepdims=True), points)
+        region = np.unique(faces[bad].ravel())
+        mean = weights[region] @ points
+        points = points.copy()
+        points[region] = mean / np.linalg.norm(mean, axis=1, keepdims=True)
     return points
 
 
@@ -237,29 +236,29 @@ def _corners(faces: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
 
 
 @njit(cache=True)
-def _chord_det(points, a, e1, e2, scale):
-    """``det G`` and ``det[q0, q1, q2]`` of a triangle from its edges ``e1 = q1 - q0``, ``e2``.
+def _chord(points, a, e1, e2):
+    """Normal ``n = e1 x e2`` of a chord triangle from its edges ``e1 = q1 - q0``, ``e2``, and
+    ``det[q0, q1, q2] = q0 . n``.
 
-    Both from the cross product ``n = e1 x e2``, as ``j0 x j1 = r00 r11 n``: the usual
-    ``g00 g11 - g01^2`` and ``q0 . (q1 x q2)`` lose all their digits to cancellation on the
-    triangles a conformal map crushes (areas down to 1e-20 and less).
+    The usual ``g00 g11 - g01^2`` and ``q0 . (q1 x q2)`` lose all their digits to cancellation
+    on the triangles a conformal map crushes (areas down to 1e-20 and less); ``det G`` is
+    ``(r00 r11)^2 |n|^2``, as ``j0 x j1 = r00 r11 n``.
     """
-    n0 = e1[1] * e2[2] - e1[2] * e2[1]
-    n1 = e1[2] * e2[0] - e1[0] * e2[2]
-    n2 = e1[0] * e2[1] - e1[1] * e2[0]
-    det = scale * scale * (n0 * n0 + n1 * n1 + n2 * n2)
-    return det, points[a, 0] * n0 + points[a, 1] * n1 + points[a, 2] * n2
+    n = np.empty(3)
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1]
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2]
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0]
+    return n, points[a, 0] * n[0] + points[a, 1] * n[1] + points[a, 2] * n[2]
 
 
 @njit(cache=True)
-def _dirichlet_energy(faces, points, inverse, area, was_flipped):
-    """Energy of the map and whether it flips a triangle that ``was_flipped`` does not.
+def _dirichlet_energy(faces, points, inverse, area, weight):
+    """Energy of the map; infinite when a chord triangle is degenerate or flipped.
 
     ``inverse`` (F, 3) holds ``1/l, -a/(l h), 1/h``, the entries of ``R^-1`` (see
-    :class:`_Dirichlet`); the energy is infinite when a chord triangle is degenerate.
+    :class:`_Dirichlet`).
     """
     total = 0.0
-    new_flip = False
     e1 = np.empty(3)
     e2 = np.empty(3)
     for f in range(faces.shape[0]):
@@ -272,17 +271,18 @@ def _dirichlet_energy(faces, points, inverse, area, was_flipped):
             j0, j1 = e1[k] * r00, e1[k] * r01 + e2[k] * r11
             g00 += j0 * j0
             g11 += j1 * j1
-        det, orientation = _chord_det(points, a, e1, e2, r00 * r11)
-        if det <= 0.0:
-            return np.inf, True
-        total += area[f] * (g00 + g11) * (1.0 + 1.0 / det)
-        if orientation <= 0.0 and not was_flipped[f]:
-            new_flip = True
-    return total, new_flip
+        n, orientation = _chord(points, a, e1, e2)
+        norm2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+        det = (r00 * r11) ** 2 * norm2
+        if det <= 0.0 or orientation <= 0.0:
+            return np.inf
+        # c = orientation / |n|: the chord plane's distance to the centre, 1 for a small triangle.
+        total += area[f] * (g00 + g11) * (weight + 1.0 / det) * np.sqrt(norm2) / orientation
+    return total
 
 
 @njit(cache=True)
-def _dirichlet_gradient(faces, points, inverse, area):
+def _dirichlet_gradient(faces, points, inverse, area, weight):
     """Gradient of :func:`_dirichlet_energy` with respect to ``points``, shape (V, 3)."""
     grad = np.zeros(points.shape)
     j0 = np.empty(3)
@@ -300,12 +300,16 @@ def _dirichlet_gradient(faces, points, inverse, area):
             g00 += j0[k] * j0[k]
             g01 += j0[k] * j1[k]
             g11 += j1[k] * j1[k]
-        det = _chord_det(points, a, e1, e2, r00 * r11)[0]
+        n, orientation = _chord(points, a, e1, e2)
+        norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        det = (r00 * r11 * norm) ** 2
         trace = g00 + g11
-        # d(t + t/d)/dJ = 2 J (1 + 1/d) - 2 (t/d^2) J adj(G), adj(G) = [[g11, -g01], [-g01, g00]];
-        # then back through J = E R^-1: dE = dJ R^-T.
-        own = 2.0 * area[f] * (1.0 + 1.0 / det)
-        cross = 2.0 * area[f] * trace / (det * det)
+        barrier = norm / orientation  # 1 / c
+        term = area[f] * trace * (weight + 1.0 / det)
+        # d(t w + t/d)/dJ = 2 J (w + 1/d) - 2 (t/d^2) J adj(G), adj(G) = [[g11, -g01], [-g01, g00]];
+        # then back through J = E R^-1: dE = dJ R^-T; all times the barrier 1/c.
+        own = 2.0 * area[f] * (weight + 1.0 / det) * barrier
+        cross = 2.0 * area[f] * trace / (det * det) * barrier
         for k in range(3):
             d0 = own * j0[k] - cross * (j0[k] * g11 - j1[k] * g01)
             d1 = own * j1[k] - cross * (j1[k] * g00 - j0[k] * g01)
@@ -313,6 +317,20 @@ def _dirichlet_gradient(faces, points, inverse, area):
             grad[a, k] -= d_e1 + d_e2
             grad[b, k] += d_e1
             grad[c, k] += d_e2
+        # term * d(|n| / o): d|n| = (de1 . (e2 x n) + de2 . (n x e1)) / |n|, and
+        # do = q0 . dn + dq0 . n = dq0 . (q1 x q2) + dq1 . (q2 x q0) + dq2 . (q0 x q1).
+        s_norm = term / (orientation * norm)
+        s_orient = -term * norm / (orientation * orientation)
+        for k in range(3):
+            k1, k2 = (k + 1) % 3, (k + 2) % 3
+            d_e1 = s_norm * (e2[k1] * n[k2] - e2[k2] * n[k1])
+            d_e2 = s_norm * (n[k1] * e1[k2] - n[k2] * e1[k1])
+            grad[a, k] -= d_e1 + d_e2
+            grad[b, k] += d_e1
+            grad[c, k] += d_e2
+            grad[a, k] += s_orient * (points[b, k1] * points[c, k2] - points[b, k2] * points[c, k1])
+            grad[b, k] += s_orient * (points[c, k1] * points[a, k2] - points[c, k2] * points[a, k1])
+            grad[c, k] += s_orient * (points[a, k1] * points[b, k2] - points[a, k2] * points[b, k1])
     return grad
 
 
@@ -325,7 +343,8 @@ class _Dirichlet:
     faces, since a step of the relaxation evaluates it several times.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, weight: float = 1.0):
+        self.weight = float(weight)
         p = vertices[faces]
         e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
         length = np.linalg.norm(e1, axis=1)
@@ -338,31 +357,32 @@ class _Dirichlet:
         self.area = 0.5 * length * h
         self.inverse = np.column_stack([1 / length, -a / (length * h), 1 / h])
 
-    def energy(self, points: np.ndarray, was_flipped: np.ndarray) -> tuple[float, bool]:
-        """The energy, and whether a triangle is flipped that ``was_flipped`` (F,) is not."""
-        return _dirichlet_energy(self.faces, points, self.inverse, self.area, was_flipped)
+    def energy(self, points: np.ndarray) -> float:
+        """The energy; infinite if a triangle is flipped or degenerate."""
+        return _dirichlet_energy(self.faces, points, self.inverse, self.area, self.weight)
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
-        return _dirichlet_gradient(self.faces, points, self.inverse, self.area)
+        return _dirichlet_gradient(self.faces, points, self.inverse, self.area, self.weight)
 
 
-def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: float):
+def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: float, weight: float = 1.0):
     """Lower the symmetric Dirichlet energy on the sphere; returns (points, steps).
 
     Steps are preconditioned by the cotangent Laplacian (the Hessian of the Dirichlet part),
     projected to the tangent planes and renormalised to the sphere; a backtracking line search
-    takes the longest that lowers the energy enough without flipping a triangle that was not
-    flipped.
+    takes the longest that lowers the energy enough (the energy is infinite when a triangle
+    flips). A start with a flipped triangle is returned as it is.
     """
     from scipy.sparse import diags
     from scipy.sparse.linalg import splu
 
-    energy = _Dirichlet(vertices, faces)
+    energy = _Dirichlet(vertices, faces, weight)
     # Single precision halves the time of the solves, the most of a step; a preconditioner
     # needs no more (the line search checks every step on the true energy).
     solve = splu((2 * (laplacian + diags(1e-3 * masses))).astype(np.float32).tocsc()).solve
-    was_flipped = flipped(faces, points)
-    current = energy.energy(points, was_flipped)[0]
+    current = energy.energy(points)
+    if not np.isfinite(current):
+        return points, 0
     history = [current]
     step = 1.0
     for iteration in range(max_steps):
@@ -378,14 +398,13 @@ def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: floa
         for _ in range(60):
             trial = points + step * direction
             trial /= np.linalg.norm(trial, axis=1, keepdims=True)
-            value, new_flip = energy.energy(trial, was_flipped)
-            if value <= current + 1e-4 * step * slope and not new_flip:
+            value = energy.energy(trial)
+            if value <= current + 1e-4 * step * slope:
                 break
             step /= 2
         else:
             return points, iteration
-        points, was_flipped = trial, flipped(faces, trial)
-        current = value
+        points, current = trial, value
         history.append(current)
         # Over several steps, as single steps may gain little while a limb is still opening.
         if len(history) > _WINDOW and history[-1 - _WINDOW] - current < _WINDOW * tol * current:
@@ -393,8 +412,35 @@ def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: floa
     return points, max_steps
 
 
+def _map_level(vertices, faces, start, max_steps, tol, weight):
+    """Map one level: from ``start`` (unit vectors, (V, 3)) or, if None, the centred conformal
+    map; untangled, relaxed and untangled again. Returns (points, steps)."""
+    # Scale the surface to the sphere's area, so that an isometry would fit.
+    vertices = (vertices - vertices.mean(axis=0)) * np.sqrt(4 * np.pi / _face_areas(vertices, faces).sum())
+    laplacian = _cotangent_laplacian(vertices, faces)
+    masses = np.bincount(
+        faces.ravel(), np.repeat(_face_areas(vertices, faces) / 3, 3), minlength=len(vertices)
+    )
+    if start is None:
+        start = _mobius_centre(_inverse_stereographic(_plane_map(vertices, faces, laplacian)), masses)
+    # A flipped triangle locks its neighbours (no step may flip another), so none is left.
+    points = _untangle(faces, start, laplacian)
+    steps = 0
+    if max_steps is None:
+        max_steps = int(np.clip(_WORK / len(vertices), 100, 3000))
+    if max_steps:
+        points, steps = _relax(vertices, faces, points, laplacian, masses, max_steps, tol, weight)
+    return _untangle(faces, points, laplacian), steps
+
+
 def spherical_parameterization(
-    vertices: np.ndarray, faces: np.ndarray, *, max_steps: int | None = None, tol: float = 1e-4
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    max_steps: int | None = None,
+    tol: float = 1e-4,
+    coarsest: int | None = _COARSEST,
+    weight: float = _CONFORMAL_WEIGHT,
 ) -> SphereMap:
     """Map a closed genus-0 mesh to the unit sphere, one point per vertex, with no flip.
 
@@ -405,12 +451,17 @@ def spherical_parameterization(
     faces : ndarray of int, shape (F, 3)
         Triangles of a mesh that passes :func:`bandelets.surfaces.checks.check_genus0`.
     max_steps : int, optional
-        Most relaxation steps; 0 keeps the centred conformal map. Default: 3000, fewer on
-        meshes of more than 5,000 vertices (15 million vertex-steps), so that the time stays
-        bounded (the cost of a step grows with the mesh).
+        Most relaxation steps on each level; 0 keeps the centred conformal map (of the
+        coarsest level, carried to the others). Default: 3000, fewer on levels of more than
+        5,000 vertices (15 million vertex-steps), so that the time stays bounded.
     tol : float
-        The relaxation stops when its last 10 steps lowered the energy by less than this
-        fraction each on average.
+        The relaxation of a level stops when its last 10 steps lowered the energy by less than
+        this fraction each on average.
+    coarsest : int or None
+        Vertices of the coarsest level of the hierarchy; None maps the mesh in one level.
+    weight : float
+        Weight of the conformal (Dirichlet) term ``tr G`` beside the stretch term
+        ``tr G / det G`` of the energy.
 
     Returns
     -------
@@ -423,24 +474,24 @@ def spherical_parameterization(
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    # Scale the surface to the sphere's area, so that an isometry would fit.
-    vertices = (vertices - vertices.mean(axis=0)) * np.sqrt(4 * np.pi / _face_areas(vertices, faces).sum())
-    laplacian = _cotangent_laplacian(vertices, faces)
-    masses = np.bincount(
-        faces.ravel(), np.repeat(_face_areas(vertices, faces) / 3, 3), minlength=len(vertices)
-    )
-    points = _inverse_stereographic(_plane_map(vertices, faces, laplacian))
-    points = _mobius_centre(points, masses)
-    steps = 0
-    if max_steps is None:
-        max_steps = int(np.clip(_WORK / len(vertices), 100, 3000))
-    if max_steps:
-        points, steps = _relax(vertices, faces, points, laplacian, masses, max_steps, tol)
-    points = _untangle(faces, points)
+    hierarchy = [(np.arange(len(vertices)), faces)]
+    if coarsest is not None:
+        hierarchy = levels(vertices, faces, coarsest)
+    points = np.zeros_like(vertices)
+    start, total = None, 0
+    for depth in range(len(hierarchy) - 1, -1, -1):
+        kept, level_faces = hierarchy[depth]
+        level_points, steps = _map_level(vertices[kept], level_faces, start, max_steps, tol, weight)
+        total += steps
+        points[kept] = level_points
+        if depth:
+            finer, finer_faces = hierarchy[depth - 1]
+            start = place(vertices[finer], vertices[kept], level_faces, level_points)
+            start[np.searchsorted(finer, kept)] = level_points  # the coarse vertices stay put
     distortion = area_distortion(vertices, faces, points)
     if distortion["flips"]:
         raise ValueError(
             f"spherical parameterization flipped {distortion['flips']} triangles "
             "(degenerate or needle triangles in the mesh?)"
         )
-    return SphereMap(points, distortion, steps)
+    return SphereMap(points, distortion, total)
