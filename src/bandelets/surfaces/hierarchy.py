@@ -174,3 +174,31 @@ def place(queries: np.ndarray, vertices: np.ndarray, faces: np.ndarray, points: 
     )
     placed = np.einsum("qk,qkc->qc", weights, points[faces[face]])
     return placed / np.maximum(np.linalg.norm(placed, axis=1, keepdims=True), 1e-300)
+
+
+def interpolate(laplacian, kept: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Sphere points of a level's vertices by harmonic interpolation of the coarser level's.
+
+    Parameters
+    ----------
+    laplacian : sparse matrix, shape (V, V)
+        The finer level's Laplacian (positive weights).
+    kept : ndarray of int, shape (V',)
+        The coarser level's vertices, as indices of the finer level's.
+    points : ndarray of float, shape (V', 3)
+        Their sphere points.
+
+    Returns
+    -------
+    ndarray of float, shape (V, 3)
+        The kept vertices at their points, the others solving ``L x = 0``, normalised.
+    """
+    from scipy.sparse.linalg import spsolve
+
+    lap = laplacian.tocsr()
+    free = np.setdiff1d(np.arange(lap.shape[0]), kept)
+    result = np.empty((lap.shape[0], 3))
+    result[kept] = points
+    rhs = -(lap[free][:, kept] @ points)
+    result[free] = spsolve(lap[free][:, free].tocsc(), rhs)
+    return result / np.maximum(np.linalg.norm(result, axis=1, keepdims=True), 1e-300)
