@@ -73,7 +73,9 @@ def main() -> None:
     start = time.perf_counter()
     imagecodecs.jpeg2k_encode(picture, level=0)
     openjpeg = time.perf_counter() - start
-    print(f"OpenJPEG lossless 1024 x 1024 RGB: {openjpeg:.2f} s; pipeline / OpenJPEG: {total / openjpeg:.0f}x")
+    print(
+        f"OpenJPEG lossless 1024 x 1024 RGB: {openjpeg:.2f} s; pipeline / OpenJPEG: {total / openjpeg:.0f}x"
+    )
     print(f"Hausdorff PSNR vs the original: {metrics.hausdorff_psnr(mesh, rebuilt):.2f} dB")
 
 

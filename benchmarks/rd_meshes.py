@@ -118,11 +118,15 @@ def ceiling_and_draco(name: str, args) -> None:
     spherical = codec.map_to_sphere(mesh)
     seconds = time.perf_counter() - start
     distortion = {k: round(float(v), 3) for k, v in spherical.distortion.items()}
-    print(f"{name}: {vertices} vertices; parameterization {seconds:.1f} s; distortion {distortion}", flush=True)
+    print(
+        f"{name}: {vertices} vertices; parameterization {seconds:.1f} s; distortion {distortion}", flush=True
+    )
     for side in (int(n) for n in args.ceiling.split(",") if n):
         remeshed = mesh_from_image(codec.sample_geometry_image(spherical, side).positions)
         psnr = metrics.hausdorff_psnr(mesh, remeshed)
-        print(f"  uncoded {side} x {side}: {psnr:6.2f} dB, area {remeshed.area / mesh.area:.4f} of the original")
+        print(
+            f"  uncoded {side} x {side}: {psnr:6.2f} dB, area {remeshed.area / mesh.area:.4f} of the original"
+        )
     if not args.draco:
         return
     for bits in (int(b) for b in args.draco.split(",")):
@@ -131,14 +135,18 @@ def ceiling_and_draco(name: str, args) -> None:
         ours_data = codec.encode_mesh(mesh, n_bytes=len(data), spherical=spherical)
         ours = metrics.hausdorff_psnr(mesh, codec.decode_mesh(ours_data))
         print(
-            f"  draco {bits:2d} bits: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, {theirs:6.2f} dB; "
+            f"  draco {bits:2d} bits: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, "
+            f"{theirs:6.2f} dB; "
             f"ours {len(ours_data):6d} bytes: {ours:6.2f} dB ({ours - theirs:+.2f})",
             flush=True,
         )
     for bpv in (float(b) for b in args.bpv.split(",")):
         data = codec.encode_mesh(mesh, bits_per_vertex=bpv, spherical=spherical)
         psnr = metrics.hausdorff_psnr(mesh, codec.decode_mesh(data))
-        print(f"  ours at {bpv:g} b/v: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, {psnr:6.2f} dB")
+        print(
+            f"  ours at {bpv:g} b/v: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, "
+            f"{psnr:6.2f} dB"
+        )
 
 
 if __name__ == "__main__":

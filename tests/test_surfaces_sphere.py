@@ -88,7 +88,7 @@ def test_hierarchy_levels_are_nested_and_placement_keeps_the_coarse_points():
     mesh = trimesh.creation.icosphere(subdivisions=4)  # 2,562 vertices
     result = levels(mesh.vertices, mesh.faces, 100)
     assert [len(kept) for kept, _ in result][0] == len(mesh.vertices) and len(result) >= 3
-    for (fine, _), (coarse, coarse_faces) in zip(result, result[1:]):
+    for (fine, _), (coarse, coarse_faces) in zip(result, result[1:], strict=False):
         assert np.isin(coarse, fine).all() and len(coarse) < len(fine) / 3
         assert len(coarse_faces) == 2 * len(coarse) - 4  # still a closed genus-0 mesh
     (fine, _), (coarse, coarse_faces) = result[-2], result[-1]

@@ -203,7 +203,11 @@ def _kernel_point(points: np.ndarray, ring: np.ndarray, centre: np.ndarray) -> t
     # -(n.e1) u - (n.e2) v + t <= n.centre
     a_ub = np.column_stack([-(normals @ e1), -(normals @ e2), np.ones(len(ring))])
     result = linprog(
-        [0.0, 0.0, -1.0], A_ub=a_ub, b_ub=normals @ centre, bounds=[(-1, 1), (-1, 1), (None, 1)], method="highs"
+        [0.0, 0.0, -1.0],
+        A_ub=a_ub,
+        b_ub=normals @ centre,
+        bounds=[(-1, 1), (-1, 1), (None, 1)],
+        method="highs",
     )
     if result.status != 0:
         return centre, -np.inf
@@ -428,7 +432,9 @@ def _face_gradient(points, a, b, c, r00, r01, r11, area, weight, sign, out):
         d1 = own * j1[k] - cross * (j1[k] * g00 - j0[k] * g01)
         d_e1 = d0 * r00 + d1 * r01 + s_norm * (e2[k1] * n[k2] - e2[k2] * n[k1])
         d_e2 = d1 * r11 + s_norm * (n[k1] * e1[k2] - n[k2] * e1[k1])
-        out[0, k] = -(d_e1 + d_e2) + s_orient * (points[b, k1] * points[c, k2] - points[b, k2] * points[c, k1])
+        out[0, k] = -(d_e1 + d_e2) + s_orient * (
+            points[b, k1] * points[c, k2] - points[b, k2] * points[c, k1]
+        )
         out[1, k] = d_e1 + s_orient * (points[c, k1] * points[a, k2] - points[c, k2] * points[a, k1])
         out[2, k] = d_e2 + s_orient * (points[a, k1] * points[b, k2] - points[a, k2] * points[b, k1])
 
@@ -549,7 +555,16 @@ class _Dirichlet:
         offsets = np.searchsorted(self.faces.ravel()[order], np.arange(len(points) + 1))
         points = points.copy()
         _polish(
-            self.faces, points, self.inverse, self.area, self.weight, self.sign, movers, order // 3, offsets, sweeps
+            self.faces,
+            points,
+            self.inverse,
+            self.area,
+            self.weight,
+            self.sign,
+            movers,
+            order // 3,
+            offsets,
+            sweeps,
         )
         return points
 
@@ -695,7 +710,9 @@ def spherical_parameterization(
     if distortion["flips"] and len(hierarchy) > 1:
         # Untangling the placement failed on some level (the horse's legs at 600 vertices):
         # map the mesh in one level instead.
-        return spherical_parameterization(vertices, faces, max_steps=max_steps, tol=tol, coarsest=None, weight=weight)
+        return spherical_parameterization(
+            vertices, faces, max_steps=max_steps, tol=tol, coarsest=None, weight=weight
+        )
     if distortion["flips"]:
         raise ValueError(
             f"spherical parameterization flipped {distortion['flips']} triangles "
