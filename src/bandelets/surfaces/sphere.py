@@ -63,6 +63,8 @@ _WEIGHT_FLOOR = 1e-3  # cotangent weights below this fraction of the median are 
 _PUNCTURE_INRADIUS = 10.0  # the pinned triangle's size in the plane: its outside is a small polar cap
 _WINDOW = 10  # the relaxation stops when its last this many steps gained too little
 _WORK = 2e6  # default most relaxation steps times vertices, on each level
+_RETRY_COARSEST = 400  # the base of the second try, when a level of the first could not be untangled
+_SINGLE_WORK = 1.5e7  # most steps times vertices when the mesh is mapped in one level: about 20 s
 _COARSEST = 100  # vertices of the coarsest level of the hierarchy
 _CONFORMAL_WEIGHT = 1.0  # weight of tr G beside the stretch term tr G / det G
 
@@ -708,11 +710,14 @@ def spherical_parameterization(
             start[np.searchsorted(finer, kept)] = level_points  # the coarse vertices stay put
     distortion = area_distortion(vertices, faces, points)
     if distortion["flips"] and len(hierarchy) > 1:
-        # Untangling the placement failed on some level (the horse's legs at 600 vertices):
-        # map the mesh in one level instead.
-        return spherical_parameterization(
-            vertices, faces, max_steps=max_steps, tol=tol, coarsest=None, weight=weight
-        )
+        # Untangling a placement failed on some level (a few triangles, on the arm, the horse):
+        # a hierarchy with a larger base, else the mesh in one level, with the one-level budget.
+        if coarsest < _RETRY_COARSEST and len(vertices) > 2 * _RETRY_COARSEST:
+            retry = {"coarsest": _RETRY_COARSEST, "max_steps": max_steps}
+        else:
+            single = int(np.clip(_SINGLE_WORK / len(vertices), 100, 3000))
+            retry = {"coarsest": None, "max_steps": single if max_steps is None else max_steps}
+        return spherical_parameterization(vertices, faces, tol=tol, weight=weight, **retry)
     if distortion["flips"]:
         raise ValueError(
             f"spherical parameterization flipped {distortion['flips']} triangles "
