@@ -63,7 +63,9 @@ _WEIGHT_FLOOR = 1e-3  # cotangent weights below this fraction of the median are 
 _PUNCTURE_INRADIUS = 10.0  # the pinned triangle's size in the plane: its outside is a small polar cap
 _WINDOW = 10  # the relaxation stops when its last this many steps gained too little
 _WORK = 2e6  # default most relaxation steps times vertices, on each level
-_RETRY_COARSEST = 400  # the base of the second try, when a level of the first could not be untangled
+# Bases of the next tries, when a level of a try could not be untangled (the arm succeeds from
+# 50 vertices, the horse from 400; which one fails is a matter of a few triangles).
+_RETRY_BASES = (50, 400)
 _SINGLE_WORK = 1.5e7  # most steps times vertices when the mesh is mapped in one level: about 20 s
 _COARSEST = 100  # vertices of the coarsest level of the hierarchy
 _CONFORMAL_WEIGHT = 1.0  # weight of tr G beside the stretch term tr G / det G
@@ -661,6 +663,7 @@ def spherical_parameterization(
     tol: float = 1e-4,
     coarsest: int | None = _COARSEST,
     weight: float = _CONFORMAL_WEIGHT,
+    tried: tuple = (),
 ) -> SphereMap:
     """Map a closed genus-0 mesh to the unit sphere, one point per vertex, with no flip.
 
@@ -682,6 +685,9 @@ def spherical_parameterization(
     weight : float
         Weight of the conformal (Dirichlet) term ``tr G`` beside the stretch term
         ``tr G / det G`` of the energy.
+    tried : tuple of int
+        Bases already tried (internal: a level that cannot be untangled makes it try the
+        next base of ``_RETRY_BASES``, then one level).
 
     Returns
     -------
@@ -710,10 +716,11 @@ def spherical_parameterization(
             start[np.searchsorted(finer, kept)] = level_points  # the coarse vertices stay put
     distortion = area_distortion(vertices, faces, points)
     if distortion["flips"] and len(hierarchy) > 1:
-        # Untangling a placement failed on some level (a few triangles, on the arm, the horse):
-        # a hierarchy with a larger base, else the mesh in one level, with the one-level budget.
-        if coarsest < _RETRY_COARSEST and len(vertices) > 2 * _RETRY_COARSEST:
-            retry = {"coarsest": _RETRY_COARSEST, "max_steps": max_steps}
+        # Untangling a placement failed on some level (a few triangles): a hierarchy with
+        # another base, else the mesh in one level, with the one-level budget.
+        later = [n for n in _RETRY_BASES if n not in (*tried, coarsest) and 2 * n < len(vertices)]
+        if later:
+            retry = {"coarsest": later[0], "max_steps": max_steps, "tried": (*tried, coarsest)}
         else:
             single = int(np.clip(_SINGLE_WORK / len(vertices), 100, 3000))
             retry = {"coarsest": None, "max_steps": single if max_steps is None else max_steps}
