@@ -101,13 +101,15 @@ def test_hierarchy_levels_are_nested_and_placement_keeps_the_coarse_points():
     assert np.max(np.linalg.norm(placed - own, axis=1)) < 0.05
 
 
-def test_coarse_to_fine_opens_the_knights_limbs():
-    # The one-level map leaves parts of the knight crushed; coarse to fine spreads them.
+def test_coarse_to_fine_maps_the_knight_evenly():
+    # The conformal start crushes the knight's extremities (stretch in the thousands); the
+    # coarse-to-fine map spreads them (stretch 2.12 measured, 1 for an isometry).
     if not MESHES.is_dir():
         pytest.skip(f"{MESHES} is absent: the real test meshes live beside the project, not in it")
     mesh = trimesh.load(MESHES / "decimated-knight.off", force="mesh", process=True)
     faces = mesh.faces if mesh.volume > 0 else mesh.faces[:, ::-1]
-    one = spherical_parameterization(mesh.vertices, faces, coarsest=None)
+    conformal = spherical_parameterization(mesh.vertices, faces, max_steps=0, coarsest=None)
     multi = spherical_parameterization(mesh.vertices, faces)
+    assert multi.levels > 1
     assert multi.distortion["flips"] == 0 and not flipped(faces, multi.points).any()
-    assert multi.distortion["mean_abs_log2"] < one.distortion["mean_abs_log2"]
+    assert multi.distortion["stretch"] < 2.5 < 100 < conformal.distortion["stretch"]
