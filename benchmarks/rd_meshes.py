@@ -9,8 +9,15 @@ the original, and the BD-PSNR of bandelets over wavelets. ``--variants`` compare
 (:data:`VARIANTS`), each also against the plain wavelet coder (no local frames, symmetric
 extension).
 
+``--ceiling 256,512`` prints instead, for each mesh, the parameterization (levels, steps, time,
+area distortion) and the uncoded geometry images of those sides against the original (Hausdorff
+PSNR, area over the original's); ``--draco 6,8,10`` adds Draco files at those quantization bits
+(level 10) and ours of the same size (the default coder, its side chosen for the rate), then
+ours at ``--bpv``.
+
     python benchmarks/rd_meshes.py [fandisk.off bunny.off ...] [--size 256] [--bpv 2,4,8,16]
         [--variants default,plain]
+    python benchmarks/rd_meshes.py arm.obj horse_quad.obj --ceiling 256,512 [--draco 6,7,8,10,12 --bpv 1,2,8]
 """
 
 from __future__ import annotations
@@ -47,7 +54,15 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--bpv", default="2,4,8,16")
     parser.add_argument("--variants", default="default", help=f"comma-separated, of {', '.join(VARIANTS)}")
+    parser.add_argument("--ceiling", default="", help="sides of uncoded geometry images to measure")
+    parser.add_argument("--draco", default="", help="Draco quantization bits to compare at the same size")
     args = parser.parse_args()
+    if args.ceiling or args.draco:
+        if not MESHES.is_dir():
+            sys.exit(f"{MESHES} is absent: this benchmark needs the shared test meshes")
+        for name in args.meshes:
+            ceiling_and_draco(name, args)
+        return
     variants = args.variants.split(",")
     if not set(variants) <= set(VARIANTS):
         sys.exit(f"unknown variant in {args.variants}; choose from {', '.join(VARIANTS)}")
@@ -91,6 +106,51 @@ def main() -> None:
                 for transform, c in (("bandelet", b), ("wavelet", w)):
                     gain = bd_psnr(c[:, 0], c[:, 1], p[:, 0], p[:, 1])
                     print(f"  {variant}: BD-PSNR of {transform}s over plain wavelets: {gain:+.2f} dB")
+
+
+def ceiling_and_draco(name: str, args) -> None:
+    """Print the parameterization, the uncoded ceilings and the comparison with Draco of a mesh."""
+    from bandelets.surfaces import draco
+
+    mesh = codec.load_mesh(MESHES / name)
+    vertices = len(mesh.vertices)
+    start = time.perf_counter()
+    spherical = codec.map_to_sphere(mesh)
+    seconds = time.perf_counter() - start
+    distortion = {k: round(float(v), 3) for k, v in spherical.distortion.items()}
+    print(
+        f"{name}: {vertices} vertices; parameterization {seconds:.1f} s; distortion {distortion}", flush=True
+    )
+    for side in (int(n) for n in args.ceiling.split(",") if n):
+        remeshed = mesh_from_image(codec.sample_geometry_image(spherical, side).positions)
+        psnr = metrics.hausdorff_psnr(mesh, remeshed)
+        print(
+            f"  uncoded {side} x {side}: {psnr:6.2f} dB, area {remeshed.area / mesh.area:.4f} of the original"
+        )
+    if not args.draco:
+        return
+    for bits in (int(b) for b in args.draco.split(",")):
+        data = draco._encode_once(np.asarray(mesh.vertices), np.asarray(mesh.faces, np.uint32), bits)
+        theirs = metrics.hausdorff_psnr(mesh, draco.decode(data))
+        ours_data = codec.encode_mesh(mesh, n_bytes=len(data), spherical=spherical)
+        ours = metrics.hausdorff_psnr(mesh, codec.decode_mesh(ours_data))
+        print(
+            f"  draco {bits:2d} bits: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, "
+            f"{theirs:6.2f} dB; "
+            f"ours {len(ours_data):6d} bytes: {ours:6.2f} dB ({ours - theirs:+.2f})",
+            flush=True,
+        )
+    for bpv in (float(b) for b in args.bpv.split(",")):
+        try:
+            data = codec.encode_mesh(mesh, bits_per_vertex=bpv, spherical=spherical)
+        except ValueError as err:  # a target below the smallest file (the 502-vertex knight at 1 b/v)
+            print(f"  ours at {bpv:g} b/v: {err}")
+            continue
+        psnr = metrics.hausdorff_psnr(mesh, codec.decode_mesh(data))
+        print(
+            f"  ours at {bpv:g} b/v: {len(data):6d} bytes = {8 * len(data) / vertices:5.2f} b/v, "
+            f"{psnr:6.2f} dB"
+        )
 
 
 if __name__ == "__main__":

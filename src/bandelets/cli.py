@@ -219,8 +219,14 @@ def _build_parser() -> argparse.ArgumentParser:
         "geometry-image", help="spherical geometry image (and normal map) of a closed genus-0 mesh"
     )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
-    p.add_argument("output", help="the .npy to write (n x n x 3 float32 positions)")
+    p.add_argument("output", nargs="?", help="the .npy to write (n x n x 3 float32 positions)")
     p.add_argument("--size", type=int, default=256, help="side of the image, even (default 256)")
+    p.add_argument(
+        "--report",
+        action="store_true",
+        help="print the parameterization's stretch, sample area ratio, and the uncoded image's "
+        "Hausdorff PSNR and area against the original",
+    )
     p.add_argument("--normals", help="also write the unit normals: 16-bit .png or float32 .npy")
     p.add_argument("-f", "--force", action="store_true", help="overwrite existing outputs")
 
@@ -546,26 +552,43 @@ def _mesh_decode(args) -> None:
 
 def _geometry_image(args) -> None:
     _check_input(args.input)
-    outputs = [args.output] + ([args.normals] if args.normals else [])
-    for output, suffixes in zip(outputs, ((".npy",), (".png", ".npy")), strict=False):
+    if args.output is None and not args.report:
+        raise ValueError("give an output .npy, or --report")
+    outputs = ([args.output] if args.output else []) + ([args.normals] if args.normals else [])
+    suffixes = ([(".npy",)] if args.output else []) + [(".png", ".npy")]
+    for output, allowed in zip(outputs, suffixes, strict=False):
         _check_output(args.input, output, args.force)
-        if Path(output).suffix.lower() not in suffixes:
-            raise ValueError(f"{output}: unsupported output format; use {' or '.join(suffixes)}")
-    if args.normals and Path(args.normals).resolve() == Path(args.output).resolve():
+        if Path(output).suffix.lower() not in allowed:
+            raise ValueError(f"{output}: unsupported output format; use {' or '.join(allowed)}")
+    if args.normals and args.output and Path(args.normals).resolve() == Path(args.output).resolve():
         raise ValueError(f"{args.normals}: --normals would overwrite the positions output")
     _working()
     from .files import write_array
-    from .surfaces.codec import load_mesh, make_geometry_image
+    from .surfaces.codec import check_size, load_mesh, map_to_sphere, sample_geometry_image
 
+    check_size(args.size)  # before the slow parameterization
     with _about(args.input):
-        image = make_geometry_image(load_mesh(args.input), args.size)
-    write_array(args.output, image.positions, "geometry-image", 0)
+        mesh = load_mesh(args.input)
+        spherical = map_to_sphere(mesh)
+        image = sample_geometry_image(spherical, args.size)
+    if args.output:
+        write_array(args.output, image.positions, "geometry-image", 0)
     if args.normals:
         try:
             write_array(args.normals, image.normals, "normal-map", 16)
         except BaseException:  # both outputs or neither
-            Path(args.output).unlink(missing_ok=True)
+            if args.output:
+                Path(args.output).unlink(missing_ok=True)
             raise
+    if args.report:
+        from .surfaces.report import parameterization_report
+
+        r = parameterization_report(mesh, spherical, args.size)
+        print(
+            f"{args.input}: {len(mesh.vertices)} vertices; stretch {r['stretch']:.3f} (1 at best); "
+            f"sample areas max/min {r['sample_area_ratio']:.3g}; uncoded {args.size} x {args.size}: "
+            f"Hausdorff PSNR {r['psnr']:.2f} dB, area {r['area']:.4f} of the original"
+        )
 
 
 def _batch(args) -> int:

@@ -1,29 +1,45 @@
 """Spherical parameterization of a closed genus-0 triangle mesh, with no flipped triangle.
 
-Three steps:
+Coarse to fine, after Praun and Hoppe (2003): the mesh is decimated in nested levels of about
+a quarter of the vertices each, down to about 100 (:mod:`.hierarchy`, pymeshlab's quadric
+edge collapse); the coarsest level is mapped as below, and each finer level starts from its
+vertices placed on the coarser level's map (closest point on the coarser surface), then is
+untangled and relaxed. A limb that is a few triangles on the coarsest level opens there in a
+few hundred cheap steps, and stays open on the finer levels: on the arm (8,311 vertices), the
+one-level map left the hand crushed to 1e-8 of its share of the sphere (uncoded geometry image
+18.7 dB at 256^2), the coarse-to-fine one spreads it (76 dB). If a level's placement cannot be
+untangled, the mesh is mapped in one level (``coarsest=None``).
 
-1. **Conformal start.** One triangle (the largest) is punctured and pinned, with its own
-   shape, as the boundary of a plane domain; the other vertices solve a sparse cotangent
-   Laplace equation (a discrete harmonic, hence nearly conformal, map). The cotangent weights
-   are floored at a small positive value, so Tutte's theorem makes the plane map an
-   embedding. The inverse stereographic projection carries it to the unit sphere.
+On one level:
+
+1. **Conformal start** (coarsest level only). One triangle (the largest) is punctured and
+   pinned, with its own shape, as the boundary of a plane domain; the other vertices solve a
+   sparse cotangent Laplace equation (a discrete harmonic, hence nearly conformal, map). The
+   cotangent weights are floored at a small positive value, so Tutte's theorem makes the plane
+   map an embedding. The inverse stereographic projection carries it to the unit sphere.
 2. **Mobius centring.** Maps of the ball that move the area-weighted centroid of the
    vertices to the centre, until it stays there: the area the conformal map crushes is
-   shared out between the extremities instead of piling up at one of them, whichever
-   triangle was punctured.
-3. **Relaxation.** The symmetric Dirichlet energy ``sum_f A_f (|J|^2 + |J^-1|^2)`` of the
-   map from each mesh triangle (area ``A_f``, surface scaled to the sphere's area) to its
-   chord triangle on the sphere is lowered by steps preconditioned with the cotangent
-   Laplacian, each projected to the tangent planes and renormalised to the sphere, under a
-   backtracking line search that refuses any step flipping a triangle not already flipped.
-   The energy is infinite for degenerate triangles and least for an isometry, so it spreads
-   out the area that a conformal map concentrates. Limbs crushed by many orders of magnitude
-   (the horse's legs) open slowly, over a thousand steps or so, while single steps may gain
-   little: the relaxation stops when ten steps in a row gained little. On large meshes the
-   default number of steps is capped, so that legs may stay under-sampled there.
-4. **Untangling.** The few triangles that the plane embedding still leaves flipped on the
-   sphere (long slivers, whose circumcircle holds more than a hemisphere) get their vertices
-   moved to the mean of their neighbours until none is flipped.
+   shared out between the extremities instead of piling up at one of them.
+3. **Untangling.** The triangles flipped on the sphere (long slivers of the conformal start,
+   folds of a placement) get their vertices moved to the mean of their neighbours until none
+   is; the relaxation needs a flip-free start.
+4. **Relaxation.** The energy ``sum_f A_f (w tr G + tr G / det G) / c_f`` of the map from
+   each mesh triangle (area ``A_f``, surface scaled to the sphere's area) to its chord
+   triangle on the sphere: ``tr G / det G = 1/s1^2 + 1/s2^2`` is the squared L2 geometric
+   stretch of Sander et al. (2001) of the inverse map (sphere to surface), which Praun and
+   Hoppe minimise so that no part of the surface is undersampled; ``w tr G`` (``w = 1``: the
+   symmetric Dirichlet energy) keeps triangles from growing without bound; ``c_f``, the chord
+   plane's distance to the centre (1 for small triangles), is a barrier that makes the energy
+   infinite at a flip, so a step may not flip a triangle. It is lowered by steps
+   preconditioned with the cotangent Laplacian, projected to the tangent planes and
+   renormalised to the sphere, under a backtracking line search; the relaxation stops when ten
+   steps in a row gained little, or after a number of steps that bounds the time.
+5. **Untangling** again, in case.
+
+Written here: the energy, its gradient and the relaxation (numba loops; no library minimises a
+stretch energy of a sphere map: libigl's SLIM and ARAP parameterize onto the plane), the
+conformal start (a scipy sparse solve), and the closest-point placement (:mod:`.hierarchy`).
+The decimation is pymeshlab's.
 
 Orientation: a triangle ``(q0, q1, q2)`` on the sphere is flipped when
 ``det[q0, q1, q2] <= 0``, i.e. its chord triangle does not face away from the centre. It is
@@ -39,12 +55,20 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from .hierarchy import levels, place
+
 __all__ = ["SphereMap", "area_distortion", "flipped", "spherical_parameterization"]
 
 _WEIGHT_FLOOR = 1e-3  # cotangent weights below this fraction of the median are raised to it
 _PUNCTURE_INRADIUS = 10.0  # the pinned triangle's size in the plane: its outside is a small polar cap
 _WINDOW = 10  # the relaxation stops when its last this many steps gained too little
-_WORK = 1.5e7  # default most relaxation steps times vertices: about 20 s on the 2-core machine
+_WORK = 2e6  # default most relaxation steps times vertices, on each level
+# Bases of the next tries, when a level of a try could not be untangled (the arm succeeds from
+# 50 vertices, the horse from 400; which one fails is a matter of a few triangles).
+_RETRY_BASES = (50, 400)
+_SINGLE_WORK = 1.5e7  # most steps times vertices when the mesh is mapped in one level: about 20 s
+_COARSEST = 100  # vertices of the coarsest level of the hierarchy
+_CONFORMAL_WEIGHT = 1.0  # weight of tr G beside the stretch term tr G / det G
 
 
 @dataclass(frozen=True)
@@ -58,12 +82,15 @@ class SphereMap:
     distortion : dict
         :func:`area_distortion` of the map (``flips`` is 0).
     iterations : int
-        Relaxation steps taken.
+        Relaxation steps taken, over all levels.
+    levels : int
+        Levels of the coarse-to-fine hierarchy mapped (1: the mesh alone).
     """
 
     points: np.ndarray
     distortion: dict
     iterations: int
+    levels: int = 1
 
 
 def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -147,26 +174,122 @@ def _mobius_centre(points: np.ndarray, masses: np.ndarray, tol: float = 1e-10, m
     return points
 
 
-def _untangle(faces: np.ndarray, points: np.ndarray, max_rounds: int = 50) -> np.ndarray:
-    """Move the vertices of flipped triangles to the mean of their neighbours, adding the
-    vertices of the triangles still flipped each round, until none is (or ``max_rounds``)."""
+def _kernel_point(points: np.ndarray, ring: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, float]:
+    """The point deepest inside the kernel of a vertex's 1-ring on the sphere.
+
+    A triangle ``(x, a, b)`` of the ring is unflipped when ``det[x, a, b] = x . (a x b) > 0``:
+    a half-space through the centre, linear in ``x``. In the gnomonic chart tangent at
+    ``centre``, ``x = centre + u e1 + v e2``, the linear program ``max t`` subject to
+    ``x . n_i >= t`` (``n_i`` the unit ``a x b``) gives the point farthest inside all of them.
+
+    Parameters
+    ----------
+    points : ndarray of float, shape (V, 3)
+    ring : ndarray of int, shape (R, 2)
+        The other two corners ``(a, b)`` of each triangle around the vertex, in its order.
+    centre : ndarray of float, shape (3,)
+        Unit vector where the chart touches the sphere.
+
+    Returns
+    -------
+    point : ndarray of float, shape (3,)
+        Unit vector.
+    depth : float
+        ``t``: positive when the point unflips every triangle of the ring.
+    """
+    from scipy.optimize import linprog
+
+    normals = np.cross(points[ring[:, 0]], points[ring[:, 1]])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    e1 = np.cross(centre, [1.0, 0, 0] if abs(centre[0]) < 0.9 else [0, 1.0, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(centre, e1)
+    # -(n.e1) u - (n.e2) v + t <= n.centre
+    a_ub = np.column_stack([-(normals @ e1), -(normals @ e2), np.ones(len(ring))])
+    result = linprog(
+        [0.0, 0.0, -1.0],
+        A_ub=a_ub,
+        b_ub=normals @ centre,
+        bounds=[(-1, 1), (-1, 1), (None, 1)],
+        method="highs",
+    )
+    if result.status != 0:
+        return centre, -np.inf
+    u, v, t = result.x
+    point = centre + u * e1 + v * e2
+    return point / np.linalg.norm(point), float(t)
+
+
+def _untangle(faces: np.ndarray, points: np.ndarray, max_rounds: int = 30) -> np.ndarray:
+    """Move the vertices of flipped triangles, one by one, deepest into the kernel of their
+    1-ring (:func:`_kernel_point`, as Praun and Hoppe place an inserted vertex), round after
+    round, taking in the neighbours of vertices whose kernel is empty, until none is flipped
+    (or ``max_rounds``)."""
     from scipy.sparse import coo_matrix
 
     n = len(points)
-    i = faces[:, [0, 1, 2, 1, 2, 0]].ravel()
-    j = faces[:, [1, 2, 0, 0, 1, 2]].ravel()
+    order = np.argsort(faces.ravel(), kind="stable")
+    offsets = np.searchsorted(faces.ravel()[order], np.arange(n + 1))
+    corner_face, corner = order // 3, order % 3
+    i = faces[:, [0, 1, 2]].ravel()
+    j = faces[:, [1, 2, 0]].ravel()
     adjacency = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n)).tocsr()
-    adjacency.data[:] = 1.0
-    region = np.zeros(n, dtype=bool)
+    points = points.copy()
+    bad = flipped(faces, points)
+    best, fewest = points.copy(), int(bad.sum())
+    stuck = np.zeros(n, dtype=bool)
+    lenient = False
     for _ in range(max_rounds):
-        bad = flipped(faces, points)
         if not bad.any():
             break
+        todo = np.zeros(n, dtype=bool)
+        todo[faces[bad].ravel()] = True
+        todo |= (adjacency @ stuck + adjacency.T @ stuck) > 0
+        stuck[:] = False
+        for vertex in np.flatnonzero(todo):
+            around = slice(offsets[vertex], offsets[vertex + 1])
+            f, k = corner_face[around], corner[around]
+            ring = np.column_stack([faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]])
+            centre = points[ring[:, 0]].sum(axis=0)
+            centre /= max(np.linalg.norm(centre), 1e-300)
+            point, depth = _kernel_point(points, ring, centre)
+            # A vertex whose kernel is empty waits for its neighbours, unless a round gained
+            # nothing: then it takes the point of least violation.
+            if depth > 0 or (lenient and np.isfinite(depth)):
+                points[vertex] = point
+            stuck[vertex] = depth <= 0
+        bad = flipped(faces, points)
+        lenient = int(bad.sum()) >= fewest
+        if int(bad.sum()) < fewest:
+            best, fewest = points.copy(), int(bad.sum())
+        elif bad.sum() > 2 * fewest + 10:  # diverging: back to the best state
+            points = best.copy()
+            bad = flipped(faces, points)
+    # The last few: their corners to the mean of their neighbours, which may leave slivers that
+    # the relaxation's one-vertex moves then repair.
+    symmetric = ((adjacency + adjacency.T) > 0).astype(np.float64)
+    points = best.copy()
+    for _ in range(max_rounds if fewest else 0):
+        bad = flipped(faces, points)
+        if not bad.any():
+            return points
+        region = np.unique(faces[bad].ravel())
+        mean = symmetric[region] @ points
+        points[region] = mean / np.linalg.norm(mean, axis=1, keepdims=True)
+    if flipped(faces, points).sum() < fewest:
+        best, fewest = points, int(flipped(faces, points).sum())
+    # Last resort: smooth a region that grows round after round around them.
+    region = np.zeros(n, dtype=bool)
+    points = best.copy()
+    for _ in range(max_rounds if fewest else 0):
+        bad = flipped(faces, points)
+        if not bad.any():
+            return points
         region[faces[bad].ravel()] = True
         for _ in range(10):
-            mean = adjacency @ points
+            mean = symmetric @ points
             points = np.where(region[:, None], mean / np.linalg.norm(mean, axis=1, keepdims=True), points)
-    return points
+    return points if flipped(faces, points).sum() < fewest else best
 
 
 def flipped(faces: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -204,7 +327,10 @@ def area_distortion(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray)
     Returns
     -------
     dict
-        ``mean_abs_log2``: mean of ``|log2 ratio|`` weighted by mesh area; ``p01``, ``p99``:
+        ``stretch``: the L2 geometric stretch of Sander et al. (2001) of the map from the sphere
+        to the surface scaled to the sphere's area (1 for an isometry, the least possible;
+        Praun and Hoppe's stretch efficiency is ``1 / stretch^2``); ``mean_abs_log2``: mean of
+        ``|log2 ratio|`` weighted by mesh area; ``p01``, ``p99``:
         1st and 99th percentiles of the ratio over the mesh area; ``min``, ``max``: its
         extremes; ``flips``: number of flipped triangles.
     """
@@ -216,7 +342,20 @@ def area_distortion(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray)
     order = np.argsort(ratio)
     cumulative = np.cumsum(mesh_share[order])
     p01, p99 = ratio[order][np.searchsorted(cumulative, [0.01, 0.99]).clip(0, ratio.size - 1)]
+    # L2 geometric stretch (Sander et al. 2001) of the sphere -> surface map, the surface scaled
+    # to the sphere's area: sqrt(mean over the surface of (1/s1^2 + 1/s2^2) / 2), 1 at best.
+    scaled = vertices * np.sqrt(4 * np.pi / _face_areas(vertices, faces).sum())
+    inverse = _Dirichlet(scaled, faces, 0.0)
+    chord = np.cross(points[faces[:, 1]] - points[faces[:, 0]], points[faces[:, 2]] - points[faces[:, 0]])
+    e1 = points[faces[:, 1]] - points[faces[:, 0]]
+    e2 = points[faces[:, 2]] - points[faces[:, 0]]
+    r00, r01, r11 = inverse.inverse.T
+    trace = np.sum((e1 * r00[:, None]) ** 2 + (e1 * r01[:, None] + e2 * r11[:, None]) ** 2, axis=1)
+    det = (r00 * r11) ** 2 * np.einsum("ij,ij->i", chord, chord)
+    with np.errstate(divide="ignore"):
+        stretch = np.sqrt(mesh_share @ (trace / det) / 2)
     return {
+        "stretch": float(stretch),
         "mean_abs_log2": float(mesh_share @ np.abs(np.log2(ratio))),
         "p01": float(p01),
         "p99": float(p99),
@@ -236,84 +375,146 @@ def _corners(faces: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     return [np.take(columns, np.ascontiguousarray(faces[:, k]), axis=1) for k in range(3)]
 
 
-@njit(cache=True)
-def _chord_det(points, a, e1, e2, scale):
-    """``det G`` and ``det[q0, q1, q2]`` of a triangle from its edges ``e1 = q1 - q0``, ``e2``.
+@njit(cache=True, inline="always")
+def _face_parts(points, a, b, c, r00, r01, r11):
+    """Edges ``e1 = q1 - q0``, ``e2``, Jacobian columns ``j0, j1``, normal ``n = e1 x e2`` and
+    ``det[q0, q1, q2] = q0 . n`` of a chord triangle, as scalars (no allocation in the loops).
 
-    Both from the cross product ``n = e1 x e2``, as ``j0 x j1 = r00 r11 n``: the usual
-    ``g00 g11 - g01^2`` and ``q0 . (q1 x q2)`` lose all their digits to cancellation on the
-    triangles a conformal map crushes (areas down to 1e-20 and less).
+    The usual ``g00 g11 - g01^2`` and ``q0 . (q1 x q2)`` lose all their digits to cancellation
+    on the triangles a conformal map crushes (areas down to 1e-20 and less); ``det G`` is
+    ``(r00 r11)^2 |n|^2``, as ``j0 x j1 = r00 r11 n``.
     """
-    n0 = e1[1] * e2[2] - e1[2] * e2[1]
-    n1 = e1[2] * e2[0] - e1[0] * e2[2]
-    n2 = e1[0] * e2[1] - e1[1] * e2[0]
-    det = scale * scale * (n0 * n0 + n1 * n1 + n2 * n2)
-    return det, points[a, 0] * n0 + points[a, 1] * n1 + points[a, 2] * n2
+    e1x, e1y, e1z = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1], points[b, 2] - points[a, 2]
+    e2x, e2y, e2z = points[c, 0] - points[a, 0], points[c, 1] - points[a, 1], points[c, 2] - points[a, 2]
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    orientation = points[a, 0] * nx + points[a, 1] * ny + points[a, 2] * nz
+    j0 = (e1x * r00, e1y * r00, e1z * r00)
+    j1 = (e1x * r01 + e2x * r11, e1y * r01 + e2y * r11, e1z * r01 + e2z * r11)
+    return (e1x, e1y, e1z), (e2x, e2y, e2z), j0, j1, (nx, ny, nz), orientation
 
 
 @njit(cache=True)
-def _dirichlet_energy(faces, points, inverse, area, was_flipped):
-    """Energy of the map and whether it flips a triangle that ``was_flipped`` does not.
+def _face_energy(points, a, b, c, r00, r01, r11, area, weight, sign):
+    """One triangle's term of the energy; infinite when its chord triangle is degenerate or
+    flipped. ``r00, r01, r11`` are the entries of ``R^-1`` (see :class:`_Dirichlet`)."""
+    _, _, j0, j1, n, orientation = _face_parts(points, a, b, c, r00, r01, r11)
+    orientation *= sign  # -1: a triangle left flipped, kept so (and its energy finite) until the end
+    norm2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+    det = (r00 * r11) ** 2 * norm2
+    if det <= 0.0 or orientation <= 0.0:
+        return np.inf
+    trace = j0[0] ** 2 + j0[1] ** 2 + j0[2] ** 2 + j1[0] ** 2 + j1[1] ** 2 + j1[2] ** 2
+    # c = orientation / |n|: the chord plane's distance to the centre, 1 for a small triangle.
+    return area * trace * (weight + 1.0 / det) * np.sqrt(norm2) / orientation
 
-    ``inverse`` (F, 3) holds ``1/l, -a/(l h), 1/h``, the entries of ``R^-1`` (see
-    :class:`_Dirichlet`); the energy is infinite when a chord triangle is degenerate.
-    """
-    total = 0.0
-    new_flip = False
-    e1 = np.empty(3)
-    e2 = np.empty(3)
+
+@njit(cache=True)
+def _face_gradient(points, a, b, c, r00, r01, r11, area, weight, sign, out):
+    """Gradient of :func:`_face_energy` with respect to its corners ``a, b, c``, into the rows
+    of ``out`` (shape (3, 3))."""
+    e1, e2, j0, j1, n, orientation = _face_parts(points, a, b, c, r00, r01, r11)
+    orientation *= sign
+    g00 = j0[0] * j0[0] + j0[1] * j0[1] + j0[2] * j0[2]
+    g01 = j0[0] * j1[0] + j0[1] * j1[1] + j0[2] * j1[2]
+    g11 = j1[0] * j1[0] + j1[1] * j1[1] + j1[2] * j1[2]
+    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    det = (r00 * r11 * norm) ** 2
+    trace = g00 + g11
+    barrier = norm / orientation  # 1 / c
+    term = area * trace * (weight + 1.0 / det)
+    # d(t w + t/d)/dJ = 2 J (w + 1/d) - 2 (t/d^2) J adj(G), adj(G) = [[g11, -g01], [-g01, g00]];
+    # then back through J = E R^-1: dE = dJ R^-T; all times the barrier 1/c. Plus
+    # term * d(|n| / o): d|n| = (de1 . (e2 x n) + de2 . (n x e1)) / |n|, and
+    # do = dq0 . (q1 x q2) + dq1 . (q2 x q0) + dq2 . (q0 x q1).
+    own = 2.0 * area * (weight + 1.0 / det) * barrier
+    cross = 2.0 * area * trace / (det * det) * barrier
+    s_norm = term / (orientation * norm)
+    s_orient = -sign * term * norm / (orientation * orientation)
+    for k in range(3):
+        k1, k2 = (k + 1) % 3, (k + 2) % 3
+        d0 = own * j0[k] - cross * (j0[k] * g11 - j1[k] * g01)
+        d1 = own * j1[k] - cross * (j1[k] * g00 - j0[k] * g01)
+        d_e1 = d0 * r00 + d1 * r01 + s_norm * (e2[k1] * n[k2] - e2[k2] * n[k1])
+        d_e2 = d1 * r11 + s_norm * (n[k1] * e1[k2] - n[k2] * e1[k1])
+        out[0, k] = -(d_e1 + d_e2) + s_orient * (
+            points[b, k1] * points[c, k2] - points[b, k2] * points[c, k1]
+        )
+        out[1, k] = d_e1 + s_orient * (points[c, k1] * points[a, k2] - points[c, k2] * points[a, k1])
+        out[2, k] = d_e2 + s_orient * (points[a, k1] * points[b, k2] - points[a, k2] * points[b, k1])
+
+
+@njit(cache=True)
+def _dirichlet_terms(faces, points, inverse, area, weight, sign):
+    """Every triangle's :func:`_face_energy`, shape (F,)."""
+    terms = np.empty(faces.shape[0])
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        r00, r01, r11 = inverse[f, 0], inverse[f, 1], inverse[f, 2]
-        g00 = g11 = 0.0
-        for k in range(3):
-            e1[k] = points[b, k] - points[a, k]
-            e2[k] = points[c, k] - points[a, k]
-            j0, j1 = e1[k] * r00, e1[k] * r01 + e2[k] * r11
-            g00 += j0 * j0
-            g11 += j1 * j1
-        det, orientation = _chord_det(points, a, e1, e2, r00 * r11)
-        if det <= 0.0:
-            return np.inf, True
-        total += area[f] * (g00 + g11) * (1.0 + 1.0 / det)
-        if orientation <= 0.0 and not was_flipped[f]:
-            new_flip = True
-    return total, new_flip
+        terms[f] = _face_energy(
+            points, faces[f, 0], faces[f, 1], faces[f, 2], inverse[f, 0], inverse[f, 1], inverse[f, 2],
+            area[f], weight, sign[f],
+        )  # fmt: skip
+    return terms
 
 
 @njit(cache=True)
-def _dirichlet_gradient(faces, points, inverse, area):
+def _dirichlet_gradient(faces, points, inverse, area, weight, sign):
     """Gradient of :func:`_dirichlet_energy` with respect to ``points``, shape (V, 3)."""
     grad = np.zeros(points.shape)
-    j0 = np.empty(3)
-    j1 = np.empty(3)
-    e1 = np.empty(3)
-    e2 = np.empty(3)
+    out = np.empty((3, 3))
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        r00, r01, r11 = inverse[f, 0], inverse[f, 1], inverse[f, 2]
-        g00 = g01 = g11 = 0.0
+        _face_gradient(
+            points, faces[f, 0], faces[f, 1], faces[f, 2], inverse[f, 0], inverse[f, 1], inverse[f, 2],
+            area[f], weight, sign[f], out,
+        )  # fmt: skip
         for k in range(3):
-            e1[k] = points[b, k] - points[a, k]
-            e2[k] = points[c, k] - points[a, k]
-            j0[k], j1[k] = e1[k] * r00, e1[k] * r01 + e2[k] * r11
-            g00 += j0[k] * j0[k]
-            g01 += j0[k] * j1[k]
-            g11 += j1[k] * j1[k]
-        det = _chord_det(points, a, e1, e2, r00 * r11)[0]
-        trace = g00 + g11
-        # d(t + t/d)/dJ = 2 J (1 + 1/d) - 2 (t/d^2) J adj(G), adj(G) = [[g11, -g01], [-g01, g00]];
-        # then back through J = E R^-1: dE = dJ R^-T.
-        own = 2.0 * area[f] * (1.0 + 1.0 / det)
-        cross = 2.0 * area[f] * trace / (det * det)
-        for k in range(3):
-            d0 = own * j0[k] - cross * (j0[k] * g11 - j1[k] * g01)
-            d1 = own * j1[k] - cross * (j1[k] * g00 - j0[k] * g01)
-            d_e1, d_e2 = d0 * r00 + d1 * r01, d1 * r11
-            grad[a, k] -= d_e1 + d_e2
-            grad[b, k] += d_e1
-            grad[c, k] += d_e2
+            grad[faces[f, k]] += out[k]
     return grad
+
+
+@njit(cache=True)
+def _polish(faces, points, inverse, area, weight, sign, movers, vertex_faces, offsets, sweeps):
+    """Lower the energy one vertex at a time (Gauss-Seidel over ``movers``), each along its own
+    projected gradient under a backtracking line search on its triangles' terms alone, as
+    Praun and Hoppe optimise a vertex in its 1-ring. Changes ``points`` in place."""
+    out = np.empty((3, 3))
+    for _ in range(sweeps):
+        for v in movers:
+            start, stop = offsets[v], offsets[v + 1]
+            before = 0.0
+            g = np.zeros(3)
+            reach = np.inf
+            for k in range(start, stop):
+                f = vertex_faces[k]
+                a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+                args = (inverse[f, 0], inverse[f, 1], inverse[f, 2], area[f], weight, sign[f])
+                before += _face_energy(points, a, b, c, *args)
+                _face_gradient(points, a, b, c, *args, out)
+                for corner in range(3):
+                    if faces[f, corner] == v:
+                        g += out[corner]
+                    else:
+                        d = points[faces[f, corner]] - points[v]
+                        reach = min(reach, np.sqrt(d @ d))
+            p = points[v].copy()
+            g -= (g @ p) * p
+            size = np.sqrt(g @ g)
+            if not (size > 0.0 and np.isfinite(before)):
+                continue
+            h = 0.5 * reach / size
+            for _ in range(40):
+                trial = p - h * g
+                points[v] = trial / np.sqrt(trial @ trial)
+                after = 0.0
+                for k in range(start, stop):
+                    f = vertex_faces[k]
+                    after += _face_energy(
+                        points, faces[f, 0], faces[f, 1], faces[f, 2], inverse[f, 0], inverse[f, 1],
+                        inverse[f, 2], area[f], weight, sign[f],
+                    )  # fmt: skip
+                if after <= before - 1e-4 * h * size * size:
+                    break
+                h *= 0.5
+            else:
+                points[v] = p
 
 
 class _Dirichlet:
@@ -325,7 +526,9 @@ class _Dirichlet:
     faces, since a step of the relaxation evaluates it several times.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, weight: float = 1.0, flipped=None):
+        self.weight = float(weight)
+        self.sign = np.ones(len(faces)) if flipped is None else np.where(flipped, -1.0, 1.0)
         p = vertices[faces]
         e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
         length = np.linalg.norm(e1, axis=1)
@@ -338,37 +541,68 @@ class _Dirichlet:
         self.area = 0.5 * length * h
         self.inverse = np.column_stack([1 / length, -a / (length * h), 1 / h])
 
-    def energy(self, points: np.ndarray, was_flipped: np.ndarray) -> tuple[float, bool]:
-        """The energy, and whether a triangle is flipped that ``was_flipped`` (F,) is not."""
-        return _dirichlet_energy(self.faces, points, self.inverse, self.area, was_flipped)
+    def terms(self, points: np.ndarray) -> np.ndarray:
+        """Each triangle's term, shape (F,); infinite where a triangle is flipped or degenerate."""
+        return _dirichlet_terms(self.faces, points, self.inverse, self.area, self.weight, self.sign)
+
+    def energy(self, points: np.ndarray) -> float:
+        """The energy; infinite if a triangle is flipped or degenerate."""
+        return float(self.terms(points).sum())
+
+    def polish(self, points: np.ndarray, share: float = 0.02, sweeps: int = 20) -> np.ndarray:
+        """``points`` after :func:`_polish` of the corners of the ``share`` of triangles with
+        the highest energy per area (where a global step is held back)."""
+        density = self.terms(points) / self.area
+        worst = np.argsort(density)[-max(1, int(share * len(density))) :]
+        movers = np.unique(self.faces[worst].ravel())
+        order = np.argsort(self.faces.ravel(), kind="stable")
+        offsets = np.searchsorted(self.faces.ravel()[order], np.arange(len(points) + 1))
+        points = points.copy()
+        _polish(
+            self.faces,
+            points,
+            self.inverse,
+            self.area,
+            self.weight,
+            self.sign,
+            movers,
+            order // 3,
+            offsets,
+            sweeps,
+        )
+        return points
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
-        return _dirichlet_gradient(self.faces, points, self.inverse, self.area)
+        return _dirichlet_gradient(self.faces, points, self.inverse, self.area, self.weight, self.sign)
 
 
-def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: float):
+def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: float, weight: float = 1.0):
     """Lower the symmetric Dirichlet energy on the sphere; returns (points, steps).
 
     Steps are preconditioned by the cotangent Laplacian (the Hessian of the Dirichlet part),
     projected to the tangent planes and renormalised to the sphere; a backtracking line search
-    takes the longest that lowers the energy enough without flipping a triangle that was not
-    flipped.
+    takes the longest that lowers the energy enough (the energy is infinite when a triangle
+    flips); the triangles flipped at the start stay flipped.
     """
     from scipy.sparse import diags
     from scipy.sparse.linalg import splu
 
-    energy = _Dirichlet(vertices, faces)
+    # Triangles that the untangling left flipped stay so, with a finite energy, until the end.
+    energy = _Dirichlet(vertices, faces, weight, flipped(faces, points))
     # Single precision halves the time of the solves, the most of a step; a preconditioner
     # needs no more (the line search checks every step on the true energy).
     solve = splu((2 * (laplacian + diags(1e-3 * masses))).astype(np.float32).tocsc()).solve
-    was_flipped = flipped(faces, points)
-    current = energy.energy(points, was_flipped)[0]
+    current = energy.energy(points)
+    if not np.isfinite(current):
+        return points, 0
     history = [current]
     step = 1.0
     for iteration in range(max_steps):
         grad = energy.gradient(points)
         grad -= np.einsum("ij,ij->i", grad, points)[:, None] * points
-        direction = -solve(grad.astype(np.float32)).astype(np.float64)
+        # Scaled into single precision's range: crushed triangles give gradients past 1e38.
+        scale = max(float(np.abs(grad).max()), 1e-300)
+        direction = -scale * solve((grad / scale).astype(np.float32)).astype(np.float64)
         direction -= np.einsum("ij,ij->i", direction, points)[:, None] * points
         slope = float(np.sum(grad * direction))
         if slope >= 0:
@@ -378,23 +612,58 @@ def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: floa
         for _ in range(60):
             trial = points + step * direction
             trial /= np.linalg.norm(trial, axis=1, keepdims=True)
-            value, new_flip = energy.energy(trial, was_flipped)
-            if value <= current + 1e-4 * step * slope and not new_flip:
+            value = energy.energy(trial)
+            if value <= current + 1e-4 * step * slope:
                 break
             step /= 2
         else:
-            return points, iteration
-        points, was_flipped = trial, flipped(faces, trial)
-        current = value
+            trial, value = points, current
+        stalled = value == current
+        points, current = trial, value
         history.append(current)
         # Over several steps, as single steps may gain little while a limb is still opening.
-        if len(history) > _WINDOW and history[-1 - _WINDOW] - current < _WINDOW * tol * current:
-            return points, iteration + 1
+        if stalled or len(history) > _WINDOW and history[-1 - _WINDOW] - current < _WINDOW * tol * current:
+            # A few triangles crushed or slivered (by an untangling) may hold back every global
+            # step: move their corners one by one, and go on if that gained.
+            polished = energy.polish(points)
+            value = energy.energy(polished)
+            if not current - value > max(_WINDOW * tol, 1e-12) * current:
+                return points, iteration + 1
+            points, current = polished, value
+            history.append(current)
     return points, max_steps
 
 
+def _map_level(vertices, faces, start, max_steps, tol, weight):
+    """Map one level: from ``start`` (unit vectors, (V, 3)) or, if None, the centred conformal
+    map; untangled, relaxed and untangled again. Returns (points, steps)."""
+    # Scale the surface to the sphere's area, so that an isometry would fit.
+    vertices = (vertices - vertices.mean(axis=0)) * np.sqrt(4 * np.pi / _face_areas(vertices, faces).sum())
+    laplacian = _cotangent_laplacian(vertices, faces)
+    masses = np.bincount(
+        faces.ravel(), np.repeat(_face_areas(vertices, faces) / 3, 3), minlength=len(vertices)
+    )
+    if start is None:
+        start = _mobius_centre(_inverse_stereographic(_plane_map(vertices, faces, laplacian)), masses)
+    # A flipped triangle locks its neighbours (no step may flip another), so none is left.
+    points = _untangle(faces, start)
+    steps = 0
+    if max_steps is None:
+        max_steps = int(np.clip(_WORK / len(vertices), 30, 3000))
+    if max_steps:
+        points, steps = _relax(vertices, faces, points, laplacian, masses, max_steps, tol, weight)
+    return _untangle(faces, points), steps
+
+
 def spherical_parameterization(
-    vertices: np.ndarray, faces: np.ndarray, *, max_steps: int | None = None, tol: float = 1e-4
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    max_steps: int | None = None,
+    tol: float = 1e-4,
+    coarsest: int | None = _COARSEST,
+    weight: float = _CONFORMAL_WEIGHT,
+    tried: tuple = (),
 ) -> SphereMap:
     """Map a closed genus-0 mesh to the unit sphere, one point per vertex, with no flip.
 
@@ -405,12 +674,20 @@ def spherical_parameterization(
     faces : ndarray of int, shape (F, 3)
         Triangles of a mesh that passes :func:`bandelets.surfaces.checks.check_genus0`.
     max_steps : int, optional
-        Most relaxation steps; 0 keeps the centred conformal map. Default: 3000, fewer on
-        meshes of more than 5,000 vertices (15 million vertex-steps), so that the time stays
-        bounded (the cost of a step grows with the mesh).
+        Most relaxation steps on each level; 0 keeps the centred conformal map (of the
+        coarsest level, carried to the others). Default: 3000, fewer on levels of more than
+        5,000 vertices (15 million vertex-steps), so that the time stays bounded.
     tol : float
-        The relaxation stops when its last 10 steps lowered the energy by less than this
-        fraction each on average.
+        The relaxation of a level stops when its last 10 steps lowered the energy by less than
+        this fraction each on average.
+    coarsest : int or None
+        Vertices of the coarsest level of the hierarchy; None maps the mesh in one level.
+    weight : float
+        Weight of the conformal (Dirichlet) term ``tr G`` beside the stretch term
+        ``tr G / det G`` of the energy.
+    tried : tuple of int
+        Bases already tried (internal: a level that cannot be untangled makes it try the
+        next base of ``_RETRY_BASES``, then one level).
 
     Returns
     -------
@@ -423,24 +700,34 @@ def spherical_parameterization(
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    # Scale the surface to the sphere's area, so that an isometry would fit.
-    vertices = (vertices - vertices.mean(axis=0)) * np.sqrt(4 * np.pi / _face_areas(vertices, faces).sum())
-    laplacian = _cotangent_laplacian(vertices, faces)
-    masses = np.bincount(
-        faces.ravel(), np.repeat(_face_areas(vertices, faces) / 3, 3), minlength=len(vertices)
-    )
-    points = _inverse_stereographic(_plane_map(vertices, faces, laplacian))
-    points = _mobius_centre(points, masses)
-    steps = 0
-    if max_steps is None:
-        max_steps = int(np.clip(_WORK / len(vertices), 100, 3000))
-    if max_steps:
-        points, steps = _relax(vertices, faces, points, laplacian, masses, max_steps, tol)
-    points = _untangle(faces, points)
+    hierarchy = [(np.arange(len(vertices)), faces)]
+    if coarsest is not None:
+        hierarchy = levels(vertices, faces, coarsest)
+    points = np.zeros_like(vertices)
+    start, total = None, 0
+    for depth in range(len(hierarchy) - 1, -1, -1):
+        kept, level_faces = hierarchy[depth]
+        level_points, steps = _map_level(vertices[kept], level_faces, start, max_steps, tol, weight)
+        total += steps
+        points[kept] = level_points
+        if depth:
+            finer, finer_faces = hierarchy[depth - 1]
+            start = place(vertices[finer], vertices[kept], level_faces, level_points)
+            start[np.searchsorted(finer, kept)] = level_points  # the coarse vertices stay put
     distortion = area_distortion(vertices, faces, points)
+    if distortion["flips"] and len(hierarchy) > 1:
+        # Untangling a placement failed on some level (a few triangles): a hierarchy with
+        # another base, else the mesh in one level, with the one-level budget.
+        later = [n for n in _RETRY_BASES if n not in (*tried, coarsest) and 2 * n < len(vertices)]
+        if later:
+            retry = {"coarsest": later[0], "max_steps": max_steps, "tried": (*tried, coarsest)}
+        else:
+            single = int(np.clip(_SINGLE_WORK / len(vertices), 100, 3000))
+            retry = {"coarsest": None, "max_steps": single if max_steps is None else max_steps}
+        return spherical_parameterization(vertices, faces, tol=tol, weight=weight, **retry)
     if distortion["flips"]:
         raise ValueError(
             f"spherical parameterization flipped {distortion['flips']} triangles "
             "(degenerate or needle triangles in the mesh?)"
         )
-    return SphereMap(points, distortion, steps)
+    return SphereMap(points, distortion, total, len(hierarchy))
