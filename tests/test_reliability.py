@@ -377,3 +377,27 @@ def test_the_fuzz_harness_runs_as_the_readme_says(tmp_path):
     )
     assert done.returncode == 0, done.stderr[-3000:]
     assert "[fuzz_decode] 30 inputs" in done.stderr
+
+
+def test_a_huge_tiff_is_refused_from_its_header(tmp_path):
+    import tifffile
+
+    path = tmp_path / "huge.tif"
+    tifffile.memmap(path, shape=(20000, 20000), dtype=np.uint16).flush()  # sparse: 800 MB announced
+    tracemalloc.start()
+    with pytest.raises(ValueError, match="huge.tif: encoding a 20000 x 20000 x 1 image needs about"):
+        read_array(path, "image")
+    assert tracemalloc.get_traced_memory()[1] < 2**22
+    tracemalloc.stop()
+
+
+@pytest.mark.parametrize("suffix", [".png", ".npy", ".exr", ".tif"])
+def test_image_shape_reads_the_header_of_every_format(tmp_path, suffix):
+    from bandelets.files import image_shape, write_array
+
+    path = tmp_path / f"map{suffix}"
+    write_array(path, np.zeros((20, 30, 3)), "normal-map", 16)
+    assert image_shape(path) == (20, 30, 3)
+    path.write_bytes(b"not an image at all, but long enough to hold a header")
+    with pytest.raises(ValueError, match="map"):
+        image_shape(path)

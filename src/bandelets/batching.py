@@ -43,7 +43,7 @@ from tqdm import tqdm
 from .bitstream import FORMAT_VERSION, KINDS
 from .decoder import decode
 from .encoder import encode
-from .files import SUFFIXES, read_array, write_atomic
+from .files import SUFFIXES, image_shape, read_array, write_atomic
 from .memory import decoder_memory, encoder_memory
 from .metrics import angular_error, bits_per_pixel, psnr
 from .rd import MESH_SUFFIXES
@@ -301,18 +301,11 @@ def memory_estimate(path: Path, kind: str, target: dict) -> int:
 
 
 def _image_shape(path: Path) -> tuple[int, int, int] | None:
+    """The shape an image file's header announces (:func:`bandelets.files.image_shape`), or None."""
     try:
-        if path.suffix.lower() == ".npy":
-            shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
-            return (*shape[:2], shape[2] if len(shape) == 3 else 1) if len(shape) in (2, 3) else None
-        with open(path, "rb") as f:
-            head = f.read(26)
-    except (OSError, ValueError):
+        return image_shape(path)
+    except ValueError:
         return None
-    if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n":
-        return None
-    channels = {0: 1, 2: 3, 3: 3, 4: 2, 6: 4}.get(head[25], 4)
-    return int.from_bytes(head[20:24], "big"), int.from_bytes(head[16:20], "big"), channels
 
 
 def _read_manifest(path: Path) -> dict[str, dict]:

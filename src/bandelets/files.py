@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .formats import read_exr, read_tiff, write_exr, write_tiff
+from .formats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
 from .memory import MAX_MEMORY, check_encodable
 
 __all__ = [
@@ -26,7 +26,9 @@ __all__ = [
     "as_read",
     "check_suffix",
     "from_samples",
+    "image_shape",
     "integer_samples",
+    "png_shape",
     "read_array",
     "to_samples",
     "write_array",
@@ -139,14 +141,15 @@ def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY)
             raise ValueError(f"{path}: {err}") from None
         return array.astype(np.float64), depth
     if suffix == ".exr":
+        check(exr_shape(path))
         return read_exr(path).astype(np.float64), 0
     if suffix in (".tif", ".tiff"):
-        pixels, depth = read_tiff(path)
+        pixels, depth = read_tiff(path, check)
         return (from_samples(pixels, kind, depth) if depth else pixels.astype(np.float64)), depth
     import imagecodecs
 
     data = path.read_bytes()
-    check(_png_shape(data, path))
+    check(png_shape(data, path))
     try:
         pixels = imagecodecs.png_decode(data)
     except Exception as err:  # imagecodecs raises its own error types for bad data
@@ -162,11 +165,40 @@ def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY)
     return from_samples(pixels, kind, depth), depth
 
 
+def image_shape(path: str | os.PathLike) -> tuple[int, int, int]:
+    """Height, width and channels that an image file's header announces, no sample read;
+    ``ValueError`` for an unreadable or unsupported file."""
+    path = Path(path)
+    check_suffix(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
+        except (OSError, ValueError, EOFError) as err:
+            raise ValueError(f"{path}: not a readable .npy file ({err})") from None
+    elif suffix == ".exr":
+        shape = exr_shape(path)
+    elif suffix in (".tif", ".tiff"):
+        import tifffile
+
+        try:
+            with tifffile.TiffFile(path) as tif:
+                shape = tiff_shape(tif.series[0])
+        except Exception as err:  # tifffile raises TiffFileError and others for bad data
+            raise ValueError(f"{path}: not a readable TIFF file ({err})") from None
+    else:
+        with open(path, "rb") as f:
+            shape = png_shape(f.read(26), path)
+    if len(shape) not in (2, 3):
+        raise ValueError(f"{path}: not an image (shape {shape})")
+    return (*shape[:2], shape[2] if len(shape) == 3 else 1)
+
+
 #: Channels of each PNG colour type (a palette decodes to RGB or RGBA, counted as RGB).
 _PNG_CHANNELS = {0: 1, 2: 3, 3: 3, 4: 1, 6: 3}
 
 
-def _png_shape(data: bytes, path: Path) -> tuple[int, int, int]:
+def png_shape(data: bytes, path: str | os.PathLike) -> tuple[int, int, int]:
     """Height, width and channels (alpha dropped) a PNG file's header announces."""
     if len(data) < 26 or data[:8] != b"\x89PNG\r\n\x1a\n" or data[12:16] != b"IHDR":
         raise ValueError(f"{path}: not a readable PNG file (no PNG header)")

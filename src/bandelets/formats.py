@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,20 @@ def read_exr(path: Path) -> np.ndarray:
     return planes[0] if len(planes) == 1 else np.stack(planes, axis=-1)
 
 
+def exr_shape(path: Path) -> tuple[int, int, int]:
+    """Height, width and channel count an EXR file's header announces (no pixel read)."""
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), header_only=True) as exr:
+            header = exr.header()
+            low, high = header["dataWindow"]
+            channels = len(header["channels"])
+    except Exception as err:  # the bindings raise RuntimeError, and others for odd files
+        raise ValueError(f"{path}: not a readable OpenEXR file ({err})") from None
+    return int(high[1] - low[1] + 1), int(high[0] - low[0] + 1), channels
+
+
 def write_exr(path: str, values: np.ndarray) -> None:
     """Write float32 values to ``path``: (H, W) as Y, (H, W, C) as R, G[, B[, A]], ZIP compressed."""
     import OpenEXR
@@ -60,9 +75,18 @@ def write_exr(path: str, values: np.ndarray) -> None:
         exr.write(path)
 
 
-def read_tiff(path: Path) -> tuple[np.ndarray, int]:
+def tiff_shape(series) -> tuple[int, int, int]:
+    """Height, width and samples per pixel of a tifffile series, from its header."""
+    sizes = dict(zip(series.axes, series.shape, strict=True))
+    return sizes.get("Y", 1), sizes.get("X", 1), sizes.get("S", 1)
+
+
+def read_tiff(
+    path: Path, check_shape: Callable[[tuple[int, ...]], None] | None = None
+) -> tuple[np.ndarray, int]:
     """The samples of a single-image TIFF file and their depth: (uint8 or uint16 samples, 8 or 16)
-    or (floats, 0); shape (H, W) or (H, W, C)."""
+    or (floats, 0); shape (H, W) or (H, W, C). ``check_shape`` is given the (H, W, C) the header
+    announces (:func:`tiff_shape`) before any sample is read."""
     import tifffile
 
     try:
@@ -70,6 +94,8 @@ def read_tiff(path: Path) -> tuple[np.ndarray, int]:
             if len(tif.series) != 1 or len(tif.series[0].levels) != 1:
                 raise ValueError("holds several images; give one")
             page = tif.series[0]
+            if check_shape is not None:
+                check_shape(tiff_shape(page))
             samples = page.asarray()
             planar = page.keyframe.planarconfig == tifffile.PLANARCONFIG.SEPARATE
     except ValueError as err:
