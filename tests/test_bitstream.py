@@ -8,6 +8,7 @@ import sys
 import textwrap
 import typing
 import zlib
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -29,9 +30,10 @@ from bandelets.bitstream import (
     pack,
     unpack,
 )
+from bandelets.options import EncodeOptions
 
 HEADER_SIZE = 42  # fixed fields, before the streams
-GEOMETRY_SIZE = 10  # options of a geometry image, after the fixed fields
+GEOMETRY_SIZE = 14  # options of a geometry image, after the fixed fields
 
 
 def _with_crc(body: bytes) -> bytes:
@@ -390,6 +392,19 @@ def geometry_file():
 def test_geometry_options_are_read_back(geometry_file):
     header, _ = unpack(geometry_file)
     assert (header.extension, header.frames, header.normal_weight) == ("spherical", True, 2.0)
+    assert header.mesh_vertices == 0  # an image made from no mesh
+    assert unpack(_patched(geometry_file, HEADER_SIZE + 10, "<I", 6002))[0].mesh_vertices == 6002
+
+
+def test_mesh_vertices_belong_to_geometry_images():
+    header = unpack(bandelets.encode(np.zeros((8, 8)), threshold=1.0))[0]
+    with pytest.raises(ValueError, match="mesh vertices"):
+        pack(replace(header, mesh_vertices=100), (b"", b"", b""))
+    with pytest.raises(ValueError, match="mesh vertices apply to geometry images only"):
+        EncodeOptions(kind="image", mesh_vertices=5)
+    for bad in (3, -1, 2**32, 4.0):
+        with pytest.raises(ValueError, match="mesh_vertices"):
+            EncodeOptions(kind="geometry-image", mesh_vertices=bad)
 
 
 @pytest.mark.parametrize(
@@ -401,6 +416,7 @@ def test_geometry_options_are_read_back(geometry_file):
         (HEADER_SIZE + 2, "<d", 65.0, "normal weight"),
         (HEADER_SIZE + 2, "<d", float("nan"), "normal weight"),
         (HEADER_SIZE + 2, "<d", float("-inf"), "normal weight"),
+        (HEADER_SIZE + 10, "<I", 3, "source mesh of 3 vertices"),
         (7, "<B", 1, "spherical extension"),  # haar
         (16, "<I", 8, "spherical extension"),  # not square
         (8, "<B", 5, "spherical extension"),  # 16 is not a multiple of 2**5

@@ -78,10 +78,35 @@ def test_encode_decode_mesh_is_closed_and_close():
     assert len(data) <= 1500
     header, _ = unpack(data)  # the defaults: local frames, normal weight 2, spherical extension
     assert (header.frames, header.normal_weight, header.extension) == (True, 2.0, "spherical")
-    decoded = decode_mesh(data)
+    decoded = decode_mesh(data, vertices="full")
     check_genus0(decoded.vertices, decoded.faces)
     assert decoded.is_watertight and decoded.volume > 0
     assert hausdorff_psnr(mesh_from_image(image), decoded, samples=20_000) > 35
+
+
+def test_decoded_mesh_has_the_original_vertex_count_by_default():
+    mesh = trimesh.creation.icosphere(subdivisions=3)  # 642 vertices, a 1024-vertex grid
+    mesh.vertices *= (1.0, 0.7, 1.3)
+    data = encode_mesh(mesh, size=32, bits_per_vertex=16)
+    assert unpack(data)[0].mesh_vertices == len(mesh.vertices) == 642
+    full = decode_mesh(data, vertices="full")
+    assert len(full.vertices) == 32 * 32
+    for asked, expected in ((None, 642), (200, 200), (5000, 32 * 32)):
+        decoded = decode_mesh(data, vertices=asked)
+        assert len(decoded.vertices) == expected and len(decoded.faces) == 2 * expected - 4
+        check_genus0(decoded.vertices, decoded.faces)
+        assert decoded.is_watertight and decoded.volume > 0  # closed, facing out
+    # Quadric decimation to the original count costs little of the full grid's PSNR.
+    psnr_full = hausdorff_psnr(mesh, full, samples=20_000)
+    assert hausdorff_psnr(mesh, decode_mesh(data), samples=20_000) > psnr_full - 1.5
+    # A geometry image made from no mesh holds no count: the whole grid.
+    from bandelets import encode
+
+    plain = encode(make_geometry_image(mesh, 32).positions, bpp=4.0, kind="geometry-image")
+    assert len(decode_mesh(plain).vertices) == 32 * 32
+    for bad in (3, "half", 2.5):
+        with pytest.raises(ValueError, match="at least 4 vertices|vertices must be"):
+            decode_mesh(data, vertices=bad)
 
 
 def test_mesh_files_ask_for_no_restoration_unless_told():
@@ -137,9 +162,13 @@ def test_mesh_commands(tmp_path, capsys):
     assert main(["info", str(bdl)]) == 0
     info = json.loads(capsys.readouterr().out)
     assert (info["frames"], info["normal_weight"], info["extension"]) == (False, 1.0, "symmetric")
-    assert main(["mesh-decode", str(bdl), str(obj)]) == 0
-    decoded = trimesh.load(obj, force="mesh", process=False)
-    assert len(decoded.vertices) == 32 * 32 and decoded.is_watertight
+    assert info["mesh_vertices"] == 502
+    for extra, count in (([], 502), (["--full"], 32 * 32), (["--vertices", "300"], 300)):
+        assert main(["mesh-decode", str(bdl), str(obj), "-f", *extra]) == 0
+        decoded = trimesh.load(obj, force="mesh", process=False)
+        assert len(decoded.vertices) == count and decoded.is_watertight
+    assert main(["mesh-decode", str(bdl), str(obj), "-f", "--vertices", "2"]) == 2
+    assert "--vertices must be at least 4" in capsys.readouterr().err
     gi, normals = tmp_path / "g.npy", tmp_path / "n.png"
     assert main(["geometry-image", str(KNIGHT), str(gi), "--size", "16", "--normals", str(normals)]) == 0
     assert np.load(gi).shape == (16, 16, 3) and normals.stat().st_size > 0

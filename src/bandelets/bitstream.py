@@ -19,8 +19,8 @@ Layout (little endian)::
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`)
     41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
-    42      ...   geometry-image options (kind 2 only, 10 bytes, see below)
-    42/52   ...   the three streams
+    42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
+    42/56   ...   the three streams
     end-4   4     CRC32 of everything before it
 
 A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
@@ -35,7 +35,8 @@ files with local frames be restored. Version 6 fixed the basis of Alpert's multi
 construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
 rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive lifting at the
 finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
-directions stream). This build reads version 7 only.
+directions stream). Version 8 added the vertex count of the source mesh to the geometry-image
+options. This build reads version 8 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -49,6 +50,8 @@ Geometry-image options (format version 2), right after the fixed header of a fil
                   (0 symmetric, 1 spherical: cdf97, square, side a multiple of 2**levels)
     1       1     local frames: 0 off, 1 on (:mod:`bandelets.frames`)
     2       8     weight of the normal component (float64; 1 when the frames are off)
+    10      4     vertices of the mesh the image was sampled from (uint32, format version 8; 0: none,
+                  else at least 4): the vertex count the mesh decoder aims at by default
 
 Every field is validated before anything is allocated; :class:`FormatError` (a ``ValueError``)
 names what is wrong. Beyond the size limits, :func:`bandelets.memory.check_memory` refuses a file
@@ -109,7 +112,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 7
+FORMAT_VERSION = 8
 
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
@@ -178,8 +181,8 @@ MIN_THRESHOLD, MAX_THRESHOLD = 1e-100, 1e100
 _FIXED = struct.Struct("<4sBBBBBBBBIId3IBB")
 #: Size of the smallest possible file: the fixed header and the CRC.
 HEADER_BYTES = _FIXED.size + 4
-#: Options of a geometry image: extension, frames, normal weight.
-_GEOMETRY = struct.Struct("<BBd")
+#: Options of a geometry image: extension, frames, normal weight, vertices of the source mesh.
+_GEOMETRY = struct.Struct("<BBdI")
 #: Range of the normal weight a file may hold.
 MIN_NORMAL_WEIGHT, MAX_NORMAL_WEIGHT = 1 / 64, 64.0
 _STREAMS = ("splits", "directions", "coefficients")
@@ -208,6 +211,8 @@ class Header:
     extension: str = "symmetric"
     frames: bool = False
     normal_weight: float = 1.0
+    #: Vertices of the mesh a geometry image was sampled from (0: none, or not a geometry image).
+    mesh_vertices: int = 0
     #: Iterations of :func:`bandelets.restoration.iterate` the decoder runs (0: none).
     restoration: int = 0
     #: Layout of a normal map's source (:data:`LAYOUTS`), which the decoder returns.
@@ -269,14 +274,17 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
             "extension": Header.extension,
             "frames": Header.frames,
             "normal_weight": Header.normal_weight,
+            "mesh_vertices": Header.mesh_vertices,
         }
         if header != replace(header, **(defaults | implied_options(header.kind, header.channels))):
             raise ValueError(
-                f"a {header.kind} of {header.channels} channels has no choice of extension, frames or "
-                f"normal weight: {header}"
+                f"a {header.kind} of {header.channels} channels has no choice of extension, frames, "
+                f"normal weight or mesh vertices: {header}"
             )
     if header.kind == "geometry-image":
-        body += _GEOMETRY.pack(EXTENSION_CODES[header.extension], int(header.frames), header.normal_weight)
+        body += _GEOMETRY.pack(
+            EXTENSION_CODES[header.extension], int(header.frames), header.normal_weight, header.mesh_vertices
+        )
     body += b"".join(streams)
     return body + struct.pack("<I", zlib.crc32(body))
 
@@ -396,7 +404,7 @@ def unpack(
 
 def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width: int) -> dict:
     """Validated geometry-image options of a file (its fixed header already validated)."""
-    extension, frames, weight = _GEOMETRY.unpack_from(data, _FIXED.size)
+    extension, frames, weight, vertices = _GEOMETRY.unpack_from(data, _FIXED.size)
     checks = [
         (extension in _EXTENSION_OF, f"unknown extension code {extension}"),
         (frames in (0, 1), f"bad local frames flag {frames}"),
@@ -413,8 +421,14 @@ def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width
             or (wavelet == "cdf97" and height == width and height % (1 << levels) == 0),
             f"spherical extension of a {width} x {height} {wavelet} image at {levels} levels",
         ),
+        (vertices == 0 or vertices >= 4, f"a source mesh of {vertices} vertices"),
     ]
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
-    return {"extension": _EXTENSION_OF[extension], "frames": bool(frames), "normal_weight": weight}
+    return {
+        "extension": _EXTENSION_OF[extension],
+        "frames": bool(frames),
+        "normal_weight": weight,
+        "mesh_vertices": vertices,
+    }

@@ -213,6 +213,16 @@ def _build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("mesh-decode", help="rebuild the closed mesh of a geometry-image .bdl file")
     p.add_argument("input")
     p.add_argument("output", help=".obj, .ply or .off")
+    size = p.add_mutually_exclusive_group()
+    size.add_argument(
+        "--vertices",
+        type=int,
+        metavar="N",
+        help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file)",
+    )
+    size.add_argument(
+        "--full", action="store_true", help="write the whole grid: one vertex per geometry-image pixel"
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser(
@@ -424,7 +434,7 @@ def _info(args) -> None:
         "format_version": FORMAT_VERSION,
     }
     if header.kind == "geometry-image":
-        info["extension"] = header.extension
+        info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
     if header.kind == "normal-map":
         info["layout"] = header.layout
     if header.kind == "geometry-image" or header.frames:
@@ -541,12 +551,14 @@ def _mesh_decode(args) -> None:
     file_type = Path(args.output).suffix.lower().lstrip(".")
     if file_type not in ("obj", "ply", "off"):  # bandelets.surfaces.codec.MESH_FORMATS
         raise ValueError(f"{args.output}: unsupported mesh format; use .obj, .ply or .off")
+    if args.vertices is not None and args.vertices < 4:
+        raise _UsageError(f"--vertices must be at least 4 (a closed mesh), got {args.vertices}")
     _working()
     from .files import write_atomic
     from .surfaces.codec import decode_mesh, mesh_bytes
 
     with _about(args.input):
-        mesh = decode_mesh(_read_bdl(args.input))
+        mesh = decode_mesh(_read_bdl(args.input), vertices="full" if args.full else args.vertices)
     write_atomic(args.output, mesh_bytes(mesh, file_type))
 
 

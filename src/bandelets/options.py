@@ -51,7 +51,9 @@ AUTO_WAVELET = "auto"
 class EncodeOptions:
     """How to encode an image: every choice of :func:`bandelets.encode` but the target.
 
-    The attributes are the keywords of :func:`bandelets.encode`, with the same defaults.
+    The attributes are the keywords of :func:`bandelets.encode`, with the same defaults, and
+    ``mesh_vertices``: the vertex count of the mesh a geometry image was sampled from, which
+    :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).
     ``ValueError`` on construction if any is unusable (whatever the image).
 
     Examples
@@ -78,6 +80,7 @@ class EncodeOptions:
     max_memory: int = MAX_MEMORY
     xy: bool = False
     max_work: int = MAX_WORK
+    mesh_vertices: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -93,9 +96,15 @@ class EncodeOptions:
                 f"{self.wavelet} and a {self.kind}"
             )
         if self.kind != "geometry-image":
-            if self.frames or self.extension != "symmetric":
-                raise ValueError("local frames and the spherical extension apply to geometry images only")
+            if self.frames or self.extension != "symmetric" or self.mesh_vertices:
+                raise ValueError(
+                    "local frames, the spherical extension and mesh vertices apply to geometry images only"
+                )
             return
+        if not (isinstance(self.mesh_vertices, (int, np.integer)) and self.mesh_vertices in range(2**32)):
+            raise ValueError(f"mesh_vertices must be an integer from 0 to 2**32 - 1, got {self.mesh_vertices}")
+        if 0 < self.mesh_vertices < 4:
+            raise ValueError(f"a closed mesh has at least 4 vertices, got mesh_vertices={self.mesh_vertices}")
         weight = self.normal_weight
         if not (np.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT):
             raise ValueError(f"normal_weight must be from 1/64 to 64, got {weight}")
@@ -155,4 +164,9 @@ def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:
         return {}
     check_extension(shape, options.wavelet, 1, options.extension)  # the encoder then picks levels that fit
     weight = float(options.normal_weight) if options.frames else 1.0
-    return {"extension": options.extension, "frames": bool(options.frames), "normal_weight": weight}
+    return {
+        "extension": options.extension,
+        "frames": bool(options.frames),
+        "normal_weight": weight,
+        "mesh_vertices": int(options.mesh_vertices),
+    }

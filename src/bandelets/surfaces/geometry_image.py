@@ -7,6 +7,9 @@ pixel square (split along the octahedron's edges), and the border glued as the u
 prescribes: pixel ``(0, j)`` neighbours ``(0, n-1-j)`` across the top edge, likewise on the
 other three edges, and the four corner pixels surround the south pole. The mesh is closed and
 crack-free whatever values the image holds.
+
+:func:`decimate` brings that mesh down to a chosen vertex count by MeshLab's quadric edge
+collapse (pymeshlab), keeping its topology: a closed genus-0 mesh stays one.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import numpy as np
 
 from . import octahedral
 
-__all__ = ["locate", "mesh_from_image", "sample", "triangulation"]
+__all__ = ["decimate", "locate", "mesh_from_image", "sample", "triangulation"]
 
 
 def _neighbours(faces: np.ndarray) -> np.ndarray:
@@ -180,3 +183,51 @@ def mesh_from_image(image: np.ndarray):
     if image.ndim != 3 or image.shape[0] != image.shape[1] or image.shape[2] != 3:
         raise ValueError(f"a geometry image is a square n x n x 3 array, got shape {image.shape}")
     return trimesh.Trimesh(image.reshape(-1, 3), triangulation(image.shape[0]), process=False)
+
+
+def decimate(mesh, vertices: int):
+    """A closed genus-0 mesh simplified to ``vertices`` vertices by quadric edge collapse.
+
+    MeshLab's quadric edge collapse (pymeshlab, Garland and Heckbert's error quadrics, optimal
+    placement, topology preserved) to the ``2 vertices - 4`` faces a closed genus-0 mesh of
+    ``vertices`` vertices has. About 8 s for a 512 x 512 geometry image to 8,000 vertices on one
+    core.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Closed and of genus 0 (as :func:`mesh_from_image` makes), faces facing out.
+    vertices : int
+        At least 4; a mesh with no more vertices is returned as it is.
+
+    Returns
+    -------
+    trimesh.Trimesh
+
+    Raises
+    ------
+    ValueError
+        If the simplified mesh is not closed, manifold and of genus 0 (MeshLab's topology checks
+        should prevent it; the mesh is checked rather than trusted).
+    """
+    import pymeshlab
+    import trimesh
+
+    from .checks import check_genus0
+
+    if vertices < 4:
+        raise ValueError(f"a closed mesh has at least 4 vertices, asked for {vertices}")
+    if vertices >= len(mesh.vertices):
+        return mesh
+    meshset = pymeshlab.MeshSet()
+    meshset.add_mesh(pymeshlab.Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32)))
+    meshset.meshing_decimation_quadric_edge_collapse(
+        targetfacenum=2 * vertices - 4, preservetopology=True, optimalplacement=True, autoclean=True
+    )
+    out = meshset.current_mesh()
+    simplified = trimesh.Trimesh(out.vertex_matrix(), out.face_matrix().astype(np.int64), process=False)
+    try:
+        check_genus0(simplified.vertices, simplified.faces)
+    except ValueError as err:
+        raise ValueError(f"the decimated mesh is no longer closed genus 0 ({err})") from None
+    return simplified
