@@ -23,7 +23,7 @@ from bandelets.surfaces.codec import (  # noqa: E402
     make_geometry_image,
     map_to_sphere,
 )
-from bandelets.surfaces.geometry_image import mesh_from_image, triangulation  # noqa: E402
+from bandelets.surfaces.geometry_image import coarsen, mesh_from_image, triangulation  # noqa: E402
 from bandelets.surfaces.metrics import hausdorff_psnr  # noqa: E402
 
 KNIGHT = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes" / "decimated-knight.off"
@@ -41,6 +41,16 @@ def test_triangulation_is_closed_genus0_and_faces_out(size):
 def test_odd_size_refused():
     with pytest.raises(ValueError, match="even side"):
         triangulation(33)
+
+
+def test_coarsen_halves_the_octahedral_grid_while_it_keeps_enough_pixels():
+    sphere = octahedral.square_to_sphere(octahedral.grid(32))
+    coarse = coarsen(sphere, 64)  # 32 -> 16 -> 8 (64 pixels); 4 would have too few
+    assert coarse.shape == (8, 8, 3)
+    directions = coarse / np.linalg.norm(coarse, axis=2, keepdims=True)
+    error = np.linalg.norm(directions - octahedral.square_to_sphere(octahedral.grid(8)), axis=2)
+    assert np.max(error) < 0.06  # the pixels of side 8 are about 0.4 apart on the sphere
+    assert coarsen(sphere, 257).shape == (32, 32, 3)
 
 
 def test_sphere_geometry_image_lies_on_the_sphere():

@@ -102,7 +102,9 @@ class EncodeOptions:
                 )
             return
         if not (isinstance(self.mesh_vertices, (int, np.integer)) and self.mesh_vertices in range(2**32)):
-            raise ValueError(f"mesh_vertices must be an integer from 0 to 2**32 - 1, got {self.mesh_vertices}")
+            raise ValueError(
+                f"mesh_vertices must be an integer from 0 to 2**32 - 1, got {self.mesh_vertices}"
+            )
         if 0 < self.mesh_vertices < 4:
             raise ValueError(f"a closed mesh has at least 4 vertices, got mesh_vertices={self.mesh_vertices}")
         weight = self.normal_weight

@@ -9,7 +9,9 @@ other three edges, and the four corner pixels surround the south pole. The mesh 
 crack-free whatever values the image holds.
 
 :func:`decimate` brings that mesh down to a chosen vertex count by MeshLab's quadric edge
-collapse (pymeshlab), keeping its topology: a closed genus-0 mesh stays one.
+collapse (pymeshlab), keeping its topology: a closed genus-0 mesh stays one. Its time grows
+faster than the vertex count (a 512 x 512 grid to 8,000 vertices: 8 s, 1024 x 1024: 45 s), so
+a grid far denser than the target is first halved (:func:`coarsen`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from . import octahedral
 
-__all__ = ["decimate", "locate", "mesh_from_image", "sample", "triangulation"]
+__all__ = ["coarsen", "decimate", "locate", "mesh_from_image", "sample", "triangulation"]
 
 
 def _neighbours(faces: np.ndarray) -> np.ndarray:
@@ -185,13 +187,36 @@ def mesh_from_image(image: np.ndarray):
     return trimesh.Trimesh(image.reshape(-1, 3), triangulation(image.shape[0]), process=False)
 
 
+def coarsen(image: np.ndarray, vertices: int) -> np.ndarray:
+    """Halve a geometry image (mean of each 2 x 2 block) while its halves keep ``vertices`` pixels.
+
+    The centre of each 2 x 2 block of the octahedral grid of side ``n`` is the pixel centre of
+    the grid of side ``n / 2``, so the mean is the image at half the side, smoothed by one fine
+    pixel (on fandisk at 512 x 512, 8 bits per vertex, decimated to its 7,229 vertices: 70.8 dB
+    from 512, 69.7 dB from 256, in a fifth of the time).
+
+    Parameters
+    ----------
+    image : ndarray of float, shape (n, n, 3)
+    vertices : int
+
+    Returns
+    -------
+    ndarray of float, shape (m, m, 3)
+        ``m = n / 2**k`` for the largest ``k`` with ``m`` even and ``m^2 >= vertices``.
+    """
+    while image.shape[0] % 4 == 0 and (image.shape[0] // 2) ** 2 >= vertices:
+        half = image.shape[0] // 2
+        image = image.reshape(half, 2, half, 2, image.shape[2]).mean(axis=(1, 3))
+    return image
+
+
 def decimate(mesh, vertices: int):
     """A closed genus-0 mesh simplified to ``vertices`` vertices by quadric edge collapse.
 
     MeshLab's quadric edge collapse (pymeshlab, Garland and Heckbert's error quadrics, optimal
     placement, topology preserved) to the ``2 vertices - 4`` faces a closed genus-0 mesh of
-    ``vertices`` vertices has. About 8 s for a 512 x 512 geometry image to 8,000 vertices on one
-    core.
+    ``vertices`` vertices has.
 
     Parameters
     ----------
