@@ -354,8 +354,10 @@ def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int 
 
 
 #: Fewest grid vertices per decoded vertex before decimation (:func:`.geometry_image.coarsen`):
-#: a 1024 x 1024 image decoded to 8,000 vertices is decimated from 512 x 512 (about 10 s rather
-#: than 45 s), one of 512 x 512 from itself.
+#: a 1024 x 1024 image decoded to 8,000 vertices is decimated from 512 x 512, one of 512 x 512
+#: from itself. The time against the PSNR: arm.obj at 16 bits per vertex (1024 x 1024) to its
+#: 8,311 vertices, 7.5 s and 77.85 dB from 512 x 512, 37 s and 79.73 dB from 1024 x 1024
+#: (the full grid: 80.88 dB); from 256 x 256 at 8 bits per vertex, 70.24 dB against 74.86.
 OVERSAMPLING = 16
 
 
