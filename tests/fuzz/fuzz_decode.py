@@ -53,7 +53,7 @@ _import_compiled_modules()
 with atheris.instrument_imports(include=["bandelets"]):
     import bandelets
     import bandelets.encoder  # imported lazily by the package: import it here to instrument it
-    from bandelets.bitstream import KIND_CODES, MAX_LEVELS, WAVELETS, FormatError, streams_offset
+    from bandelets.bitstream import KIND_CODES, MAX_LEVELS, WAVELETS, FormatError, streams_offset, unpack
     from bandelets.wavelets import subband_norms
 
 LIMITS = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20, "max_work": 2**20}
@@ -84,8 +84,11 @@ def run(data: bytes) -> None:
         stats[f"other ValueError {type(err).__name__}: {str(err)[:60]}"] += 1
     else:
         stats["decoded"] += 1
-        h, w = struct.unpack_from("<II", data, 12)
-        channels = 3 if data[5] == KIND_CODES["normal-map"] else data[9]  # z rebuilt from x, y
+        header = unpack(data, max_side=2**32, max_samples=2**64)[0]  # it decoded: it parses
+        channels = header.channels
+        if header.kind == "normal-map":  # z rebuilt from x, y, unless the source was x, y alone
+            channels = 2 if header.layout == "xy" else 3
+        h, w = header.height, header.width
         expected = (h, w) if channels == 1 else (h, w, channels)
         if out.shape != expected or out.dtype != np.float64 or not np.all(np.isfinite(out)):
             raise AssertionError(f"bad output {out.shape} {out.dtype} for header {expected}")
