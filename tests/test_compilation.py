@@ -31,3 +31,11 @@ def test_the_first_compilation_is_announced_once():
 def test_a_closed_stderr_does_not_fail_the_compilation():
     done = _run("compilation.announce()\nsys.stderr.close()\nnjit(lambda x: x + 1)(1)\nprint('compiled')\n")
     assert (done.returncode, done.stdout) == (0, "compiled\n")
+
+
+def test_quiet_commands_say_nothing():
+    # What `bandelets encode -q` / `decode -q` call before their work (cli._working).
+    quiet = _run("from bandelets import cli\ncli._working(quiet=True)\nnjit(lambda x: x + 1)(1)\n")
+    loud = _run("from bandelets import cli\ncli._working()\nnjit(lambda x: x + 1)(1)\n")
+    assert (quiet.returncode, quiet.stderr) == (0, "")
+    assert (loud.returncode, loud.stderr) == (0, f"{compilation.MESSAGE}\n")

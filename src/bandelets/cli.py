@@ -277,17 +277,24 @@ def _common(p: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="refuse an image whose coding would need more memory (MiB, or with K, M, G; default 2G)",
     )
-    p.add_argument("-q", "--quiet", action="store_true", help="no summary line on stderr")
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="nothing on stderr but errors (no summary line, no compile notice)",
+    )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
 
-def _working() -> None:
+def _working(quiet: bool = False) -> None:
     """Called by each command once its arguments are checked, before the codec loads: from here
-    on numba may compile the kernels, and :func:`bandelets.compilation.announce` says so (numba
-    itself takes a third of a second to import: not for an argument error)."""
-    from .compilation import announce
+    on numba may compile the kernels, and :func:`bandelets.compilation.announce` says so, unless
+    ``-q`` asks for silence, as gzip's does (numba itself takes a third of a second to import:
+    not for an argument error)."""
+    if not quiet:
+        from .compilation import announce
 
-    announce()
+        announce()
 
 
 def _check_input(path: str) -> None:
@@ -326,7 +333,7 @@ def _encode(args) -> None:
     _check_output(args.input, args.output, args.force)
     if Path(args.output).suffix.lower() in IMAGE_SUFFIXES:
         raise ValueError(f"{args.output}: encode writes a .bdl file; name it {Path(args.output).stem}.bdl")
-    _working()
+    _working(args.quiet)
     start = time.perf_counter()
     from .files import read_array
 
@@ -368,7 +375,7 @@ def _decode(args) -> None:
     from .files import check_suffix
 
     check_suffix(args.output, "output")
-    _working()
+    _working(args.quiet)
     start = time.perf_counter()
     from .bitstream import unpack
     from .decoder import decode_parsed
