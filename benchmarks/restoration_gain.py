@@ -8,10 +8,11 @@ one. Surfaces: the generated crease and bumps normal maps (bandelets, CDF 9/7) a
 ``../shared/data/meshes`` is there, the normal map of fandisk's 256 x 256 geometry image.
 
     python benchmarks/restoration_gain.py [--size 256] [--rates 0.25,0.5,1,2] [--meshes DIR]
-        [--edge E] [--step S] [--second-order W] [--second-edge E2]
+        [--edge E] [--step S] [--second-order W] [--second-edge E2] [--project-every P]
 
-``--edge``, ``--step``, ``--second-order`` and ``--second-edge`` replace
-:data:`bandelets.restoration.EDGE`, ``STEP``, ``SECOND_ORDER`` and ``SECOND_EDGE`` for this run
+``--edge``, ``--step``, ``--second-order``, ``--second-edge`` and ``--project-every`` replace
+:data:`bandelets.restoration.EDGE`, ``STEP``, ``SECOND_ORDER``, ``SECOND_EDGE`` and
+``PROJECT_EVERY`` for this run
 (encoder and decoder alike), to measure other choices of the decoder's constants; files made
 that way are not .bdl files any other build decodes the same. ``--second-order 0 --edge 0.5``
 is the log total variation of format version 4, ``--second-order 0 --edge 1e9`` the plain total
@@ -60,12 +61,16 @@ def main() -> None:
     parser.add_argument(
         "--second-edge", type=float, default=restoration.SECOND_EDGE, help="SECOND_EDGE, in units of T"
     )
+    parser.add_argument(
+        "--project-every", type=int, default=restoration.PROJECT_EVERY, help="PROJECT_EVERY, iterations"
+    )
     args = parser.parse_args()
-    restoration.EDGE, restoration.STEP = args.edge, args.step
+    restoration.EDGE, restoration.STEP, restoration.PROJECT_EVERY = args.edge, args.step, args.project_every
     restoration.SECOND_ORDER, restoration.SECOND_EDGE = args.second_order, args.second_edge
     print(
         f"EDGE {args.edge:g} T, STEP {args.step:g} T, "
-        f"SECOND_ORDER {args.second_order:g}, SECOND_EDGE {args.second_edge:g} T"
+        f"SECOND_ORDER {args.second_order:g}, SECOND_EDGE {args.second_edge:g} T, "
+        f"PROJECT_EVERY {args.project_every}"
     )
     rates = [float(r) for r in args.rates.split(",")]
     columns = f"{'target':>6} {'bytes':>6} {'plain':>7} {'restored':>8} {'gain':>6} {'iter':>4}  decode"

@@ -146,7 +146,7 @@ def _channel_map(header: Header):
 
 def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
     """The file's transform of the (padded) channels, ``(C, H, W)`` to ``(C, H, W)``, and its
-    inverse (which overwrites its argument). With local frames, those of every level are the
+    inverse (both overwrite their argument). With local frames, those of every level are the
     ones the decoder finds from the dequantized bins ``quantized``
     (:func:`bandelets.frames.to_global`), fixed from then on; ``lifting``: the directions of the
     levels lifted along directions, if any."""
@@ -159,13 +159,13 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
         ]
         level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
 
-    # In place, channel by channel: no copy of the image besides the analysis' output.
-    def analysis(x: np.ndarray) -> np.ndarray:
+    # In place, channel by channel: no copy of the image.
+    def analysis(x: np.ndarray) -> np.ndarray:  # overwrites x
         if lifting is not None:
             c = np.array(directional.analysis(x, levels, header.lifting, lifting)[0])
         else:
-            c = np.empty_like(x)
-            each(lambda k: wavedec(x[k], *args, out=c[k]), range(len(c)))
+            c = x
+            each(lambda k: wavedec(x[k], *args, out=x[k]), range(len(c)))
         if level_frames is not None:
             frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=True)
         each(lambda k: apply_trees(c[k], levels, trees, bandeletize, t1d, inplace=True), range(len(c)))

@@ -46,6 +46,7 @@ in 0.55 times the iterations; ``--step 0.02``: +1.50 dB instead of +1.84 at 0.25
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from itertools import count
 
 import numpy as np
 from numba import njit
@@ -58,6 +59,7 @@ __all__ = [
     "EDGE",
     "SECOND_ORDER",
     "SECOND_EDGE",
+    "PROJECT_EVERY",
     "penalty_gradient",
     "iterate",
 ]
@@ -76,12 +78,20 @@ SECOND_ORDER = 0.25
 #: Second-difference magnitude, in units of ``T``, above which that penalty grows only
 #: logarithmically (the kink of a crease).
 SECOND_EDGE = 0.5
+#: Iterations per projection into the bins (the others take the penalty's step alone).
+PROJECT_EVERY = 1
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
 
 
 def penalty_gradient(
-    x: np.ndarray, smoothing: float, edge: float, second_order: float = 0.0, second_edge: float = 1.0
+    x: np.ndarray,
+    smoothing: float,
+    edge: float,
+    second_order: float = 0.0,
+    second_edge: float = 1.0,
+    out: np.ndarray | None = None,
+    work: np.ndarray | None = None,
 ) -> np.ndarray:
     """Gradient of the restoration penalty: a vectorial log total variation
     ``sum edge log(1 + n / edge)``, where ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every
@@ -101,18 +111,20 @@ def penalty_gradient(
         > 0, in the units of ``x``.
     second_order : float
         >= 0; 0 leaves the second-order term out.
+    out : ndarray, shape (C, H, W), float64, row-major, optional
+        Where to write the gradient (not ``x``).
+    work : ndarray, shape (5, H, W), float64, row-major, optional
+        Scratch space (the restoration passes the same one at every iteration).
 
     Returns
     -------
     ndarray, shape (C, H, W)
     """
-    return _gradient(
-        np.ascontiguousarray(x, dtype=np.float64),
-        float(smoothing),
-        float(edge),
-        float(second_order),
-        float(second_edge),
-    )
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    out = np.empty_like(x) if out is None else out
+    work = np.empty((5, *x.shape[1:])) if work is None else work
+    _gradient(x, float(smoothing), float(edge), float(second_order), float(second_edge), out, work)
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -124,76 +136,138 @@ def _log_weight(squared_norm, smoothing, edge):
 
 
 @njit(cache=True, nogil=True)
-def _gradient(x, smoothing, edge, second_order, second_edge):
-    channels, rows, cols = x.shape
-    # The weight of the joint gradient at every pixel.
-    inverse = np.empty((rows, cols))
-    for i in range(rows):
-        for j in range(cols):
-            s = 0.0
-            for c in range(channels):
-                dx = x[c, i, j + 1] - x[c, i, j] if j + 1 < cols else 0.0
-                dy = x[c, i + 1, j] - x[c, i, j] if i + 1 < rows else 0.0
-                s += dx * dx + dy * dy
-            inverse[i, j] = _log_weight(s, smoothing, edge)
-    # Minus the divergence of the weighted gradient field.
-    out = np.empty_like(x)
-    for c in range(channels):
-        for i in range(rows):
-            for j in range(cols):
-                g = 0.0
-                if j + 1 < cols:
-                    g -= (x[c, i, j + 1] - x[c, i, j]) * inverse[i, j]
-                if j > 0:
-                    g += (x[c, i, j] - x[c, i, j - 1]) * inverse[i, j - 1]
-                if i + 1 < rows:
-                    g -= (x[c, i + 1, j] - x[c, i, j]) * inverse[i, j]
-                if i > 0:
-                    g += (x[c, i, j] - x[c, i - 1, j]) * inverse[i - 1, j]
-                out[c, i, j] = g
-    if second_order > 0.0:
-        _add_second_order(x, out, smoothing, second_order, second_edge)
-    return out
+def _gradient(x, smoothing, edge, second_order, second_edge, out, work):
+    """:func:`penalty_gradient` into ``out``. The weights of every pixel first, then, channel by
+    channel, what each pixel's second differences spread to its neighbours, then every sample
+    gathers its terms: the same numbers, added in the same order, as a scatter of each pixel's
+    stencil over the pixels in row-major order, without a branch inside the image."""
+    inverse, w, a, b, d = work[0], work[1], work[2], work[3], work[4]
+    _first_weights(x, smoothing, edge, inverse)
+    second = second_order > 0.0
+    if second:
+        _second_weights(x, smoothing, second_order, second_edge, w)
+    for c in range(x.shape[0]):
+        if second:
+            _second_terms(x[c], w, a, b, d)
+        _divergence(x[c], inverse, a, b, d, second, out[c])
 
 
 @njit(cache=True, nogil=True)
-def _add_second_order(x, out, smoothing, weight, edge):
-    """Add to ``out`` the gradient of ``weight`` times the log penalty on the second differences:
-    each difference's stencil, transposed, spreads its weighted value back to its samples."""
-    channels, rows, cols = x.shape
-    w = np.empty((rows, cols))
+def _divergence(v, inverse, a, b, d, second, out):
+    """The gradient of the channel ``v`` at every pixel (see :func:`_gradient`)."""
+    rows, cols = v.shape
     for i in range(rows):
-        for j in range(cols):
-            s = 0.0
-            for c in range(channels):
-                xx, yy, xy = _second_differences(x[c], i, j)
-                s += xx * xx + yy * yy + 2.0 * xy * xy
-            w[i, j] = weight * _log_weight(s, smoothing, edge)
-    for c in range(channels):
-        for i in range(rows):
-            for j in range(cols):
-                xx, yy, xy = _second_differences(x[c], i, j)
-                a, b, d = w[i, j] * xx, w[i, j] * yy, 2.0 * w[i, j] * xy
-                out[c, i, j] += d - 2.0 * (a + b)
-                if j > 0:
-                    out[c, i, j - 1] += a
-                if j + 1 < cols:
-                    out[c, i, j + 1] += a - d
-                if i > 0:
-                    out[c, i - 1, j] += b
-                if i + 1 < rows:
-                    out[c, i + 1, j] += b - d
-                    if j + 1 < cols:
-                        out[c, i + 1, j + 1] += d
+        border = i == 0 or i == rows - 1
+        for j in range(0, cols, 1 if border else max(cols - 1, 1)):
+            out[i, j] = _pixel(v, inverse, a, b, d, i, j, second, False)
+        if border:
+            continue
+        # Inside, a loop the compiler vectorises (the flags are constants there).
+        if second:
+            for j in range(1, cols - 1):
+                out[i, j] = _pixel(v, inverse, a, b, d, i, j, True, True)
+        else:
+            for j in range(1, cols - 1):
+                out[i, j] = _pixel(v, inverse, a, b, d, i, j, False, True)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _second_differences(x, i, j):
-    """``xx``, ``yy`` and ``xy`` of the channel ``x`` at pixel ``(i, j)`` (0 where they do not fit)."""
+def _pixel(v, inverse, a, b, d, i, j, second, inside):
+    """Minus the divergence of the weighted gradient at pixel ``(i, j)`` of the channel ``v``, then
+    (``second``) the terms of the second differences whose stencils reach it, from the pixels
+    ``(i - 1, j - 1)``, ``(i - 1, j)``, ``(i, j - 1)``, itself, ``(i, j + 1)``, ``(i + 1, j)`` in that
+    order; ``inside``: ``(i, j)`` is not on the border."""
+    rows, cols = v.shape
+    g = 0.0
+    if inside or j + 1 < cols:
+        g -= (v[i, j + 1] - v[i, j]) * inverse[i, j]
+    if inside or j > 0:
+        g += (v[i, j] - v[i, j - 1]) * inverse[i, j - 1]
+    if inside or i + 1 < rows:
+        g -= (v[i + 1, j] - v[i, j]) * inverse[i, j]
+    if inside or i > 0:
+        g += (v[i, j] - v[i - 1, j]) * inverse[i - 1, j]
+    if second:
+        if inside or (i > 0 and j > 0):
+            g += d[i - 1, j - 1]
+        if inside or i > 0:
+            g += b[i - 1, j] - d[i - 1, j]
+        if inside or j > 0:
+            g += a[i, j - 1] - d[i, j - 1]
+        g += d[i, j] - 2.0 * (a[i, j] + b[i, j])
+        if inside or j + 1 < cols:
+            g += a[i, j + 1]
+        if inside or i + 1 < rows:
+            g += b[i + 1, j]
+    return g
+
+
+@njit(cache=True, nogil=True)
+def _first_weights(x, smoothing, edge, inverse):
+    """The weight of the joint gradient at every pixel (forward differences, 0 past the end)."""
+    channels, rows, cols = x.shape
+    s = np.empty(cols)
+    for i in range(rows):
+        s[:] = 0.0
+        for c in range(channels):
+            v = x[c]
+            if i + 1 < rows:
+                for j in range(cols - 1):
+                    dx = v[i, j + 1] - v[i, j]
+                    dy = v[i + 1, j] - v[i, j]
+                    s[j] += dx * dx + dy * dy
+                dy = v[i + 1, cols - 1] - v[i, cols - 1]
+                s[cols - 1] += dy * dy  # dx * dx + dy * dy with dx = 0: the same number
+            else:
+                for j in range(cols - 1):
+                    dx = v[i, j + 1] - v[i, j]
+                    s[j] += dx * dx
+        for j in range(cols):
+            inverse[i, j] = _log_weight(s[j], smoothing, edge)
+
+
+@njit(cache=True, nogil=True)
+def _second_weights(x, smoothing, weight, edge, w):
+    """``weight`` times the weight of the joint second differences at every pixel."""
+    channels, rows, cols = x.shape
+    s = np.empty(cols)
+    for i in range(rows):
+        s[:] = 0.0
+        for c in range(channels):
+            v = x[c]
+            if 0 < i < rows - 1:
+                for j in range(1, cols - 1):
+                    xx, yy, xy = _second_differences(v, i, j, True)
+                    s[j] += xx * xx + yy * yy + 2.0 * xy * xy
+            # The border pixels of the row (all of them on the first and last rows).
+            for j in range(0, cols, max(cols - 1, 1) if 0 < i < rows - 1 else 1):
+                xx, yy, xy = _second_differences(v, i, j, False)
+                s[j] += xx * xx + yy * yy + 2.0 * xy * xy
+        for j in range(cols):
+            w[i, j] = weight * _log_weight(s[j], smoothing, edge)
+
+
+@njit(cache=True, nogil=True)
+def _second_terms(v, w, a, b, d):
+    """What pixel ``(i, j)`` of the channel ``v`` spreads to its neighbours: ``a = w xx``,
+    ``b = w yy``, ``d = 2 w xy``."""
+    rows, cols = v.shape
+    for i in range(rows):
+        inside = 0 < i < rows - 1
+        for j in range(cols):
+            xx, yy, xy = _second_differences(v, i, j, inside and 0 < j < cols - 1)
+            a[i, j], b[i, j], d[i, j] = w[i, j] * xx, w[i, j] * yy, 2.0 * w[i, j] * xy
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _second_differences(x, i, j, inside):
+    """``xx``, ``yy`` and ``xy`` of the channel ``x`` at pixel ``(i, j)`` (0 where they do not fit);
+    ``inside``: not on a border."""
     rows, cols = x.shape
-    xx = x[i, j + 1] - 2.0 * x[i, j] + x[i, j - 1] if 0 < j < cols - 1 else 0.0
-    yy = x[i + 1, j] - 2.0 * x[i, j] + x[i - 1, j] if 0 < i < rows - 1 else 0.0
-    xy = x[i + 1, j + 1] - x[i + 1, j] - x[i, j + 1] + x[i, j] if i + 1 < rows and j + 1 < cols else 0.0
+    xx = x[i, j + 1] - 2.0 * x[i, j] + x[i, j - 1] if inside or 0 < j < cols - 1 else 0.0
+    yy = x[i + 1, j] - 2.0 * x[i, j] + x[i - 1, j] if inside or 0 < i < rows - 1 else 0.0
+    fits = inside or (i + 1 < rows and j + 1 < cols)
+    xy = x[i + 1, j + 1] - x[i + 1, j] - x[i, j + 1] + x[i, j] if fits else 0.0
     return xx, yy, xy
 
 
@@ -214,7 +288,7 @@ def iterate(
         ``T``.
     analysis, synthesis : callables
         The file's transform, ``(C, H, W)`` samples to ``(C, H, W)`` coefficients (the channels
-        together: local frames mix them), and its inverse.
+        together: local frames mix them), and its inverse; both may overwrite their argument.
     unit_vectors : (h, w), optional
         The three channels are the components of unit vectors over their first ``h`` rows and
         ``w`` columns (a normal map coded with its z): each step also brings those vectors
@@ -225,9 +299,9 @@ def iterate(
     ------
     ndarray, shape (C, H, W), float64: the channels (the first one: plain dequantization,
     reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin, :func:`dequantize`).
-    Each array is overwritten two steps later (the buffers are reused): copy one to keep it.
+    Each array is overwritten by the next step (the buffers are reused): copy one to keep it.
     """
-    x = synthesis(np.array([dequantize(b, threshold) for b in q]))
+    x = np.ascontiguousarray(synthesis(np.array([dequantize(b, threshold) for b in q])))
     yield x
     if min(x.shape[1:]) < 2:  # no gradient to follow
         while True:
@@ -235,26 +309,40 @@ def iterate(
     # Nesterov's momentum (as in FISTA): each step starts from the last estimate pushed further
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
     ahead, t = x.copy(), 1.0
-    while True:
-        # In place, in the order of the plain numpy expressions (the same numbers to the last bit).
-        step = penalty_gradient(
-            ahead, SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold
-        )
-        step *= STEP * threshold
-        ahead -= step
+    # Two images, the step and the penalty's scratch space: allocated once, not at every iteration.
+    step, work = np.empty_like(x), np.empty((5, *x.shape[1:]))
+    constants = (SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold)
+    for k in count(1):
+        penalty_gradient(ahead, *constants, out=step, work=work)
+        _descend(ahead.reshape(-1), step.reshape(-1), STEP * threshold)
         if unit_vectors is not None:
             _to_unit_length(ahead, *unit_vectors)
-        c = analysis(ahead)
-        for channel, bins in zip(c, q, strict=True):
-            clip_into_bins(channel, bins, threshold)
-        new = synthesis(c)
+        new = ahead
+        if k % PROJECT_EVERY == 0:
+            c = analysis(ahead)  # may overwrite ahead
+            for channel, bins in zip(c, q, strict=True):
+                clip_into_bins(channel, bins, threshold)
+            new = np.ascontiguousarray(synthesis(c))  # flat views below
         t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
-        # ahead = new + (t - 1) / t_next (new - x), in the buffer of x.
-        ahead = np.subtract(new, x, out=x)
-        ahead *= (t - 1.0) / t_next
-        ahead += new
-        x, t = new, t_next
+        _extrapolate(new.reshape(-1), x.reshape(-1), (t - 1.0) / t_next)
+        ahead, x, t = x, new, t_next
         yield x
+
+
+@njit(cache=True, nogil=True)
+def _descend(x, gradient, step):
+    """``x -= step * gradient``, in place (flat arrays): one pass over memory, not two, and the same
+    numbers as ``gradient *= step; x -= gradient``."""
+    for i in range(x.shape[0]):
+        x[i] = x[i] - gradient[i] * step
+
+
+@njit(cache=True, nogil=True)
+def _extrapolate(new, x, weight):
+    """``x = new + weight (new - x)``, in place in ``x`` (flat arrays), with the rounding of
+    ``np.subtract(new, x, out=x); x *= weight; x += new``."""
+    for i in range(x.shape[0]):
+        x[i] = (new[i] - x[i]) * weight + new[i]
 
 
 @njit(cache=True, nogil=True)
