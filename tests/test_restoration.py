@@ -91,8 +91,8 @@ def test_the_penalty_keeps_a_crease_and_flattens_ripples():
 
 
 def test_iterations_stay_consistent_with_the_bins(edge_image):
-    """Each step keeps every coefficient of an orthogonal transform inside its bin, and the first
-    estimate is the plain dequantized image."""
+    """Each step that projects keeps every coefficient of an orthogonal transform inside its bin,
+    and the first estimate is the plain dequantized image."""
     t = 0.05
 
     def analysis(x):
@@ -106,7 +106,8 @@ def test_iterations_stay_consistent_with_the_bins(edge_image):
     steps = restoration.iterate([q], t, analysis, synthesis)
     first = next(steps)[0].copy()
     np.testing.assert_allclose(first, synthesis(dequantize(q, t)[None])[0])
-    for _ in range(5):
+    # Every PROJECT_EVERY steps the image is projected into the bins.
+    for _ in range(restoration.PROJECT_EVERY):
         x = next(steps)[0]
     c = analysis(x[None])[0]
     assert np.all((c >= low - 1e-9) & (c <= high + 1e-9))
@@ -165,8 +166,8 @@ def test_the_encoder_never_picks_a_worse_restoration(rng, kind):
 
 
 def test_files_with_local_frames_are_restored_in_their_frames():
-    """The bins hold the coefficients turned into the local frames: each step keeps the restored
-    image's coefficients, turned the same way, in them; step 0 is the plain decoding."""
+    """The bins hold the coefficients turned into the local frames: each projection keeps the
+    restored image's coefficients, turned the same way, in them; step 0 is the plain decoding."""
     v, u = np.mgrid[0:32, 0:32] / 31.0
     surface = np.stack([np.cos(3 * u), np.sin(2 * v), u * v], axis=-1)
     data = bandelets.encode(surface, bpp=4.0, kind="geometry-image", frames=True, restore=False)
@@ -176,7 +177,7 @@ def test_files_with_local_frames_are_restored_in_their_frames():
     analysis, synthesis = decoder.channel_transforms(header, trees, quantized, lifting)
     steps = restoration.iterate(quantized, header.threshold, analysis, synthesis)
     np.testing.assert_array_equal(decoder.decoded_image(next(steps), header), bandelets.decode(data))
-    for _ in range(5):
+    for _ in range(restoration.PROJECT_EVERY):  # a step that projects into the bins
         x = next(steps)
     c = analysis(x)
     for k, q in enumerate(quantized):
