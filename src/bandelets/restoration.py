@@ -60,6 +60,7 @@ path, not only where it ends, is what the encoder's choice of the count regulari
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from itertools import count
 
@@ -142,11 +143,13 @@ def penalty_gradient(
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _log_weight(squared_norm, smoothing, edge):
     """d(edge log(1 + n / edge))/dn / n, with n = sqrt(squared_norm + smoothing**2)."""
-    # Never 0, even where smoothing**2 underflows (a threshold below any a file may hold).
-    n = max(np.sqrt(squared_norm + smoothing * smoothing), 1e-150)
+    # Never 0, even where smoothing**2 underflows (a threshold below any a file may hold). Python's
+    # max(n, 1e-150) written as a select, which the compiler vectorises.
+    n = math.sqrt(squared_norm + smoothing * smoothing)
+    n = 1e-150 if 1e-150 > n else n
     return edge / (n * (edge + n))
 
 
@@ -217,7 +220,7 @@ def _pixel(v, inverse, a, b, d, i, j, second, inside):
     return g
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _first_weights(x, smoothing, edge, inverse):
     """The weight of the joint gradient at every pixel (forward differences, 0 past the end)."""
     channels, rows, cols = x.shape
@@ -241,7 +244,7 @@ def _first_weights(x, smoothing, edge, inverse):
             inverse[i, j] = _log_weight(s[j], smoothing, edge)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _second_weights(x, smoothing, weight, edge, w):
     """``weight`` times the weight of the joint second differences at every pixel."""
     channels, rows, cols = x.shape
