@@ -36,11 +36,10 @@ iteration's cost) is done every :data:`PROJECT_EVERY` = 10 iterations only (form
 within the few dozen steps the encoder picks, the penalty's steps hardly ever push a coefficient
 out of its bin, so the projection need not follow each of them. The gain is kept, in a third of
 the time (``python benchmarks/restoration_gain.py --project-every N``, BD-PSNR of the
-restoration on crease / bumps / fandisk normals at the step of version 8, 0.01 T: +3.99 / +0.48 /
-+2.28 dB projecting at every step, +4.04 / +0.48 / +2.41 every 5, +4.02 / +0.48 / +2.27 every 10,
-+3.91 / +0.48 / - every 20, +3.74 / +0.47 / - never). That made room for a larger step,
-:data:`STEP` = 0.015 T instead of 0.01 T: 20 % fewer iterations for 97 to 101 % of the gain
-(+3.89 / +0.47 / +2.31 dB).
+restoration on crease / bumps / fandisk normals: +3.99 / +0.48 / +2.28 dB projecting at every
+step, +4.04 / +0.48 / +2.41 every 5, +4.02 / +0.48 / +2.27 every 10, +3.91 / +0.48 / - every 20,
++3.74 / +0.47 / - never). A larger step with it, 0.015 T, takes 20 % fewer iterations but
+loses 0.1 dB on the crease map (+3.89 / +0.47 / +2.31 dB): not taken.
 
 Written here (compiled loops for the gradient, the steps, the renormalisation and the projection
 into the bins) because no library offers such a reconstruction constrained in an arbitrary (here
@@ -48,14 +47,15 @@ bandelet) basis: scikit-image's and scipy's total-variation denoisers solve the 
 problem in the pixel domain.
 
 Faster solvers were measured and lost (BD-PSNR of the restoration as above, projecting at every
-step; ``python benchmarks/restoration_gain.py --step S``): larger steps alone keep less of the
-gain at low rates (0.02 T: +3.75 / +0.47 / +2.17 dB; 0.03 T: +3.53 / +0.45 / +2.07, in 0.55
-times the iterations). Prototypes (environment switches, not kept): restarting the momentum when
-it turns against the step (O'Donoghue and Candes) changed nothing (+3.87 dB on crease at 0.015 T
-with or without); steps growing with the iteration count (0.01 T times ``min(3, 1 + k / 20)``)
-gave +3.73 / +0.48 / +2.16; a step preconditioned by the diagonal of the reweighted penalty
-(Jacobi, 0.3 over that diagonal) +0.51 dB on crease, and capped at 0.03 T +3.62 / +0.41. The
-path, not only where it ends, is what the encoder's choice of the count regularises.
+step): larger steps keep less of the gain at low rates (``python benchmarks/restoration_gain.py
+--step 0.015``: +3.87 / +0.48 dB on crease / bumps in 20 % fewer iterations; 0.02 T: +3.78 /
++0.47 / +2.48 against +4.01 / +0.49 / +2.59 in an earlier run). Prototypes (environment
+switches, not kept): restarting the momentum when it turns against the step (O'Donoghue and
+Candes) changed nothing at 0.015 T and gave +3.75 / +0.47 / +2.17 at 0.02 T, +3.53 / +0.45 /
++2.07 at 0.03 T; steps growing with the iteration count (0.01 T times ``min(3, 1 + k / 20)``)
++3.73 / +0.48 / +2.16; a step preconditioned by the diagonal of the reweighted penalty (Jacobi,
+0.3 over that diagonal) +0.51 dB on crease, and capped at 0.03 T +3.62 / +0.41. The path, not
+only where it ends, is what the encoder's choice of the count regularises.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ __all__ = [
 #: Gradient step on the penalty, in units of ``T`` per iteration (each sample moves by
 #: at most about 4 STEP T per step): small enough that the count chosen by the encoder is not
 #: a knife edge, large enough to converge in a few dozen iterations.
-STEP = 0.015
+STEP = 0.01
 #: Smoothing of the penalty's corner, ``|grad|`` stands for ``sqrt(|grad|**2 + (SMOOTHING T)**2)``.
 SMOOTHING = 0.01
 #: Gradient magnitude, in units of ``T``, above which the penalty grows only logarithmically:
