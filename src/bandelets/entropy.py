@@ -70,7 +70,7 @@ _GT1 = _SIG + N_CLASSES * _N_SUM * 3 * _N_GUIDE
 _GT2 = _GT1 + N_CLASSES * 5 * _N_GUIDE
 _PREFIX = _GT2 + N_CLASSES * 5 * _N_GUIDE
 _SIGN = _PREFIX + N_CLASSES * _EG_PREFIX
-_N_COEFF_CONTEXTS = _SIGN + N_CLASSES * 9
+_N_COEFF_CONTEXTS = _SIGN + N_CLASSES * 27
 
 
 class Coder:
@@ -362,10 +362,12 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
                 m = 1
             j = neighbours[i, 0]
             sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
+            j = neighbours[i, 1]
+            sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
             if guide.shape[0] > 0 and guide[at] != 0:
                 sign_ctx += 3 if guide[at] > 0 else 6
             negative = _code_bit(
-                st, buf, probs, counts, _SIGN + cls * 9 + sign_ctx, 1 if value < 0 else 0, decoding
+                st, buf, probs, counts, _SIGN + cls * 27 + sign_ctx, 1 if value < 0 else 0, decoding
             )
             if negative:
                 m = -m
