@@ -57,7 +57,7 @@ _COST = np.rint(-np.log2((np.arange(4096) + 0.5) / 4096) * _COST_SCALE).astype(n
 #: 10-24 bandelet (square width 4, 8, 16+ x 1D scale bucket).
 N_CLASSES = 25
 _N_SUM = 8
-_SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7], np.int64)
+_SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
@@ -335,7 +335,8 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
         for k in range(5):
             j = neighbours[i, k]
             mags[k] = min(abs(known[j]), 2) if j >= 0 else 0
-        total = 2 * mags[0] + 2 * mags[1] + mags[2] + mags[3]
+        j = neighbours[i, 5]
+        total = 2 * mags[0] + 2 * mags[1] + mags[2] + mags[3] + (min(abs(known[j]), 2) if j >= 0 else 0)
         near = _SUM_BUCKET[total]
         # The approximation is smooth: code its residual from the median predictor of
         # LOCO-I (left, up, up-left); details are coded as they are.
