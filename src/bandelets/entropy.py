@@ -62,6 +62,7 @@ _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
 _APPROXIMATION = 0
+_FIRST_BANDELET = 10
 #: Largest magnitude a decoded coefficient may have (the quantizer's MAX_INDEX).
 MAX_MAGNITUDE = 2**30
 _N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide
@@ -70,7 +71,15 @@ _GT1 = _SIG + N_CLASSES * _N_SUM * 3 * _N_GUIDE
 _GT2 = _GT1 + N_CLASSES * 5 * _N_GUIDE
 _PREFIX = _GT2 + N_CLASSES * 5 * _N_GUIDE
 _SIGN = _PREFIX + N_CLASSES * _EG_PREFIX
-_N_COEFF_CONTEXTS = _SIGN + N_CLASSES * 27
+# The coarse contexts that back them (:func:`_code_backed`), by family of classes (approximation,
+# wavelet, bandelet) instead of by class.
+_N_FAMILIES = 3
+_SIG_COARSE = _SIGN + N_CLASSES * 27
+_GT1_COARSE = _SIG_COARSE + _N_FAMILIES * _N_SUM * 3 * _N_GUIDE
+_GT2_COARSE = _GT1_COARSE + _N_FAMILIES * 5 * _N_GUIDE
+_SIGN_COARSE = _GT2_COARSE + _N_FAMILIES * 5 * _N_GUIDE
+_N_COEFF_CONTEXTS = _SIGN_COARSE + _N_FAMILIES * 27
+_BACKOFF = 4
 
 
 class Coder:
@@ -164,10 +173,9 @@ def _decoder_start(st, buf):
 
 
 @njit(cache=True, inline="always")
-def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
-    """Code one binary decision in context ``ctx``; returns the bit (decoded or given)."""
-    p = probs[ctx]
-    bound = (st[_RANGE] >> _PROB_BITS) * p  # p is the probability of a 1
+def _code_at(st, buf, p, bit, decoding):
+    """Code one binary decision whose 1 has probability ``p`` (of ``_PROB_ONE``); returns the bit."""
+    bound = (st[_RANGE] >> _PROB_BITS) * p
     if decoding:
         bit = 1 if st[_LOW] < bound else 0
     st[_SPENT] += _COST[(p if bit else _PROB_ONE - p) >> 4]
@@ -179,24 +187,52 @@ def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
         else:
             st[_LOW] -= bound
         st[_RANGE] -= bound
-    if counts is not None:
-        # Adaptation rate about 1/(n + 2) for the n-th use of a context (a counting
-        # estimator while the context is young), then a window of about 128 decisions.
-        n = counts[ctx]
-        shift = _SHIFT[n]
-        if n < _SHIFT.shape[0] - 1:
-            counts[ctx] = n + 1
-        if bit:
-            p += (_PROB_ONE - p) >> shift
-        else:
-            p -= p >> shift
-        probs[ctx] = min(max(p, _PROB_MIN), _PROB_ONE - _PROB_MIN)
     while st[_RANGE] < _TOP:
         st[_RANGE] <<= 8
         if decoding:
             st[_LOW] = ((st[_LOW] << 8) | _next_byte(st, buf)) & 0xFFFFFFFF
         else:
             _shift_low(st, buf)
+    return bit
+
+
+@njit(cache=True, inline="always")
+def _adapt(probs, counts, ctx, bit):
+    """Move the probability of context ``ctx`` towards ``bit``."""
+    # Adaptation rate about 1/(n + 2) for the n-th use of a context (a counting
+    # estimator while the context is young), then a window of about 128 decisions.
+    p = probs[ctx]
+    n = counts[ctx]
+    shift = _SHIFT[n]
+    if n < _SHIFT.shape[0] - 1:
+        counts[ctx] = n + 1
+    if bit:
+        p += (_PROB_ONE - p) >> shift
+    else:
+        p -= p >> shift
+    probs[ctx] = min(max(p, _PROB_MIN), _PROB_ONE - _PROB_MIN)
+
+
+@njit(cache=True, inline="always")
+def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
+    """Code one binary decision in context ``ctx``; returns the bit (decoded or given)."""
+    bit = _code_at(st, buf, probs[ctx], bit, decoding)
+    if counts is not None:
+        _adapt(probs, counts, ctx, bit)
+    return bit
+
+
+@njit(cache=True, inline="always")
+def _code_backed(st, buf, probs, counts, ctx, coarse, bit, decoding):
+    """Code one binary decision in context ``ctx`` backed by the ``coarse`` context that it
+    refines: while ``ctx`` has been used ``n`` times, its probability is weighted ``n`` against
+    ``_BACKOFF`` for the coarse one, so that a rarely used context starts from what its
+    neighbours in the table learned instead of from 1/2. Both adapt."""
+    n = counts[ctx]
+    p = (n * probs[ctx] + _BACKOFF * probs[coarse]) // (n + _BACKOFF)
+    bit = _code_at(st, buf, p, bit, decoding)
+    _adapt(probs, counts, ctx, bit)
+    _adapt(probs, counts, coarse, bit)
     return bit
 
 
@@ -344,13 +380,22 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
         value = q[at] - predicted
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
-        ctx = _SIG + ((cls * _N_SUM + near) * 3 + mags[4]) * _N_GUIDE + g
-        if _code_bit(st, buf, probs, counts, ctx, 1 if m > 0 else 0, decoding) == 0:
+        family = 0 if cls == _APPROXIMATION else (1 if cls < _FIRST_BANDELET else 2)
+        ctx = ((near * 3 + mags[4]) * _N_GUIDE) + g
+        fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
+        coarse = _SIG_COARSE + family * _N_SUM * 3 * _N_GUIDE + ctx
+        if _code_backed(st, buf, probs, counts, fine, coarse, 1 if m > 0 else 0, decoding) == 0:
             m = 0
         else:
-            near5 = (cls * 5 + min(near, 4)) * _N_GUIDE + g
-            if _code_bit(st, buf, probs, counts, _GT1 + near5, 1 if m > 1 else 0, decoding):
-                if _code_bit(st, buf, probs, counts, _GT2 + near5, 1 if m > 2 else 0, decoding):
+            near5 = min(near, 4) * _N_GUIDE + g
+            fine = cls * 5 * _N_GUIDE + near5
+            coarse = family * 5 * _N_GUIDE + near5
+            if _code_backed(
+                st, buf, probs, counts, _GT1 + fine, _GT1_COARSE + coarse, 1 if m > 1 else 0, decoding
+            ):
+                if _code_backed(
+                    st, buf, probs, counts, _GT2 + fine, _GT2_COARSE + coarse, 1 if m > 2 else 0, decoding
+                ):
                     r = _elias_gamma(
                         st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding
                     )
@@ -367,8 +412,15 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
             if guide.shape[0] > 0 and guide[at] != 0:
                 sign_ctx += 3 if guide[at] > 0 else 6
-            negative = _code_bit(
-                st, buf, probs, counts, _SIGN + cls * 27 + sign_ctx, 1 if value < 0 else 0, decoding
+            negative = _code_backed(
+                st,
+                buf,
+                probs,
+                counts,
+                _SIGN + cls * 27 + sign_ctx,
+                _SIGN_COARSE + family * 27 + sign_ctx,
+                1 if value < 0 else 0,
+                decoding,
             )
             if negative:
                 m = -m
