@@ -55,14 +55,14 @@ _COST = np.rint(-np.log2((np.arange(4096) + 0.5) / 4096) * _COST_SCALE).astype(n
 
 #: Coefficient context classes: 0 approximation, 1-9 wavelet (orientation x level bucket),
 #: 10-24 bandelet (square width 4, 8, 16+ x 1D scale bucket).
-N_CLASSES = 25
+N_CLASSES = 31
 _N_SUM = 8
 _SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
 _APPROXIMATION = 0
-_FIRST_BANDELET = 10
+_FIRST_BANDELET = 16
 #: Largest magnitude a decoded coefficient may have (the quantizer's MAX_INDEX).
 MAX_MAGNITUDE = 2**30
 _N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide

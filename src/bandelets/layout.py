@@ -104,7 +104,7 @@ def _square_tables(square: int, k: int, width: int) -> tuple[np.ndarray, np.ndar
     scale = np.zeros(n, np.int64)  # 1D scale: wavelets of scale s start at k 2**s
     scale[k:] = np.floor(np.log2(index[k:] // k)).astype(np.int64)
     finest = int(np.log2(n // k)) - 1
-    classes = 10 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
+    classes = 16 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
     first = np.where(index < k, 0, k << scale)  # first index of each 1D scale
 
     def rel(j, ok):
@@ -196,5 +196,5 @@ def subband_plan(
     tables = tuple(_square_tables(MIN_WIDTH << j, k, shape[1]) for j in range(_MAX_LEVELS))
     squares = _bandelet_part(in_square, top[bandelet], left[bandelet], sizes[bandelet], box, shape[1], tables)
     sibling = np.array(subband_box(shape, level, orientation - 1)[:2] if orientation else (), np.int64)
-    rest = _raster_part(in_square, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2), sibling)
+    rest = _raster_part(in_square, box, parent, shape[1], 1 + orientation * 5 + min(level - 1, 4), sibling)
     return Segment(*squares), Segment(*rest)
