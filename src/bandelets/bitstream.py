@@ -36,7 +36,9 @@ construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it f
 rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive lifting at the
 finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
 directions stream). Version 8 added the vertex count of the source mesh to the geometry-image
-options. This build reads version 8 only.
+options. Version 9 changed the coefficient stream's contexts (:mod:`bandelets.entropy`: backed
+by coarse contexts, the sign's upper neighbour, the sibling subband, one class per level). This
+build reads version 9 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -112,7 +114,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 8
+FORMAT_VERSION = 9
 
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
