@@ -15,8 +15,8 @@ slows to 1/128 as a context matures.
 
 The coefficient contexts (:func:`code_coefficients`) are many (class x neighbours x guide) and a
 256 x 256 map at 0.25 bpp uses about 1,500 of them a few times each: learning each one from 1/2
-cost about a sixth of such a file. So each of them is backed by a coarse context shared by its
-family of classes (approximation, wavelet, bandelet), which it outweighs as it is used
+cost about a sixth of such a file. So each of them is backed by the same context shared by all
+the classes, which it outweighs as it is used
 (:func:`_code_backed`): +0.3 dB BD-PSNR on the crease map, +0.1 to +0.2 on the others
 (BENCHMARKS, "Context modelling of format version 9").
 
@@ -69,7 +69,6 @@ _EG_PREFIX = 20
 _MAX_PREFIX = 31
 # Context table layout of the coefficient stream.
 _APPROXIMATION = 0
-_FIRST_BANDELET = 16
 #: Largest magnitude a decoded coefficient may have (the quantizer's MAX_INDEX).
 MAX_MAGNITUDE = 2**30
 _N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide
@@ -78,14 +77,12 @@ _GT1 = _SIG + N_CLASSES * _N_SUM * 3 * _N_GUIDE
 _GT2 = _GT1 + N_CLASSES * 5 * _N_GUIDE
 _PREFIX = _GT2 + N_CLASSES * 5 * _N_GUIDE
 _SIGN = _PREFIX + N_CLASSES * _EG_PREFIX
-# The coarse contexts that back them (:func:`_code_backed`), by family of classes (approximation,
-# wavelet, bandelet) instead of by class.
-_N_FAMILIES = 3
+# The coarse contexts that back them (:func:`_code_backed`): the same contexts without the class.
 _SIG_COARSE = _SIGN + N_CLASSES * 27
-_GT1_COARSE = _SIG_COARSE + _N_FAMILIES * _N_SUM * 3 * _N_GUIDE
-_GT2_COARSE = _GT1_COARSE + _N_FAMILIES * 5 * _N_GUIDE
-_SIGN_COARSE = _GT2_COARSE + _N_FAMILIES * 5 * _N_GUIDE
-_N_COEFF_CONTEXTS = _SIGN_COARSE + _N_FAMILIES * 27
+_GT1_COARSE = _SIG_COARSE + _N_SUM * 3 * _N_GUIDE
+_GT2_COARSE = _GT1_COARSE + 5 * _N_GUIDE
+_SIGN_COARSE = _GT2_COARSE + 5 * _N_GUIDE
+_N_COEFF_CONTEXTS = _SIGN_COARSE + 27
 _BACKOFF = 4
 
 
@@ -387,21 +384,18 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
         value = q[at] - predicted
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
-        family = 0 if cls == _APPROXIMATION else (1 if cls < _FIRST_BANDELET else 2)
-        ctx = ((near * 3 + mags[4]) * _N_GUIDE) + g
+        ctx = (near * 3 + mags[4]) * _N_GUIDE + g
         fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
-        coarse = _SIG_COARSE + family * _N_SUM * 3 * _N_GUIDE + ctx
-        if _code_backed(st, buf, probs, counts, fine, coarse, 1 if m > 0 else 0, decoding) == 0:
+        if _code_backed(st, buf, probs, counts, fine, _SIG_COARSE + ctx, 1 if m > 0 else 0, decoding) == 0:
             m = 0
         else:
             near5 = min(near, 4) * _N_GUIDE + g
             fine = cls * 5 * _N_GUIDE + near5
-            coarse = family * 5 * _N_GUIDE + near5
             if _code_backed(
-                st, buf, probs, counts, _GT1 + fine, _GT1_COARSE + coarse, 1 if m > 1 else 0, decoding
+                st, buf, probs, counts, _GT1 + fine, _GT1_COARSE + near5, 1 if m > 1 else 0, decoding
             ):
                 if _code_backed(
-                    st, buf, probs, counts, _GT2 + fine, _GT2_COARSE + coarse, 1 if m > 2 else 0, decoding
+                    st, buf, probs, counts, _GT2 + fine, _GT2_COARSE + near5, 1 if m > 2 else 0, decoding
                 ):
                     r = _elias_gamma(
                         st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding
@@ -425,7 +419,7 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
                 probs,
                 counts,
                 _SIGN + cls * 27 + sign_ctx,
-                _SIGN_COARSE + family * 27 + sign_ctx,
+                _SIGN_COARSE + sign_ctx,
                 1 if value < 0 else 0,
                 decoding,
             )
