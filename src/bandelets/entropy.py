@@ -82,7 +82,8 @@ _SIG_COARSE = _SIGN + N_CLASSES * 27
 _GT1_COARSE = _SIG_COARSE + _N_SUM * 3 * _N_GUIDE
 _GT2_COARSE = _GT1_COARSE + 5 * _N_GUIDE
 _SIGN_COARSE = _GT2_COARSE + 5 * _N_GUIDE
-_N_COEFF_CONTEXTS = _SIGN_COARSE + 27
+_PREFIX_COARSE = _SIGN_COARSE + 27
+_N_COEFF_CONTEXTS = _PREFIX_COARSE + _EG_PREFIX
 _BACKOFF = 4
 
 
@@ -312,7 +313,7 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
 
 
 @njit(cache=True)
-def _elias_gamma(st, buf, probs, counts, half, r, base, decoding):
+def _elias_gamma(st, buf, probs, counts, half, r, base, decoding, coarse=-1):
     """Code ``r >= 1``: adaptive unary prefix ``floor(log2 r)`` (contexts ``base + i``), then
     its low bits equiprobable. Returns ``r`` (decoded when decoding), -1 if corrupt."""
     n_prefix = 0
@@ -321,7 +322,12 @@ def _elias_gamma(st, buf, probs, counts, half, r, base, decoding):
     e = 0
     while True:
         ctx = base + min(e, _EG_PREFIX - 1)
-        if _code_bit(st, buf, probs, counts, ctx, 1 if e < n_prefix else 0, decoding) == 0:
+        bit = 1 if e < n_prefix else 0
+        if coarse >= 0:
+            bit = _code_backed(st, buf, probs, counts, ctx, coarse + min(e, _EG_PREFIX - 1), bit, decoding)
+        else:
+            bit = _code_bit(st, buf, probs, counts, ctx, bit, decoding)
+        if bit == 0:
             break
         e += 1
         if e > _MAX_PREFIX:
@@ -398,7 +404,15 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
                     st, buf, probs, counts, _GT2 + fine, _GT2_COARSE + near5, 1 if m > 2 else 0, decoding
                 ):
                     r = _elias_gamma(
-                        st, buf, probs, counts, half, m - 2, _PREFIX + cls * _EG_PREFIX, decoding
+                        st,
+                        buf,
+                        probs,
+                        counts,
+                        half,
+                        m - 2,
+                        _PREFIX + cls * _EG_PREFIX,
+                        decoding,
+                        _PREFIX_COARSE,
                     )
                     if r < 0 or r > MAX_MAGNITUDE:
                         return -1
