@@ -12,8 +12,10 @@ decoded (restoration included); bpp is ``8 x bytes / pixels``, PSNR that of the 
 vectors. The maps: the generated ``crease`` and ``bumps`` maps (256 x 256, float), and the
 shared real ``acacia_door_bottom_n`` (X and Y only: Z rebuilt, as ``rd_normal_maps.py``
 does) and ``lava_flow_n`` maps of ``--maps`` (skipped when absent); ``--sizes 512`` adds
-the generated maps at 512. Prints each map's points and, with ``--against``, the BD-PSNR of
-this coder over the saved one (positive: this one better).
+the generated maps at 512; ``--npy`` adds normal maps stored as float arrays (for instance the
+mesh normal maps ``rd_surfaces.py`` writes to ``out/rd-benchmark/inputs/``; ``--sizes`` alone:
+no generated map). Prints each map's points and, with ``--against``, the BD-PSNR of this coder
+over the saved one (positive: this one better).
 """
 
 from __future__ import annotations
@@ -36,9 +38,9 @@ from rd_normal_maps import load  # noqa: E402
 RATES = (0.25, 0.5, 1.0, 2.0)
 
 
-def maps(folder: Path, sizes: list[int]) -> dict:
+def maps(folder: Path, sizes: list[int], arrays: list[Path]) -> dict:
     """Name -> (vectors, depth of the source: 0 float, 8 for the PNG maps)."""
-    out = {}
+    out = {path.stem: (np.load(path), 0) for path in arrays}
     for size in sizes:
         suffix = "" if size == 256 else f"@{size}"
         out[f"crease{suffix}"] = (crease_normal_map(size), 0)
@@ -58,11 +60,12 @@ def main() -> None:
     target.add_argument("--save", type=Path, help="write the points and thresholds here")
     target.add_argument("--against", type=Path, help="compare with the points saved here")
     parser.add_argument("--maps", type=Path, default=Path("../shared/data/normal-maps"))
-    parser.add_argument("--sizes", type=int, nargs="+", default=[256])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[256])
+    parser.add_argument("--npy", type=Path, nargs="*", default=[], help="more normal maps, float .npy")
     args = parser.parse_args()
     saved = json.loads(args.against.read_text()) if args.against else {}
     results = {}
-    for name, (vectors, depth) in maps(args.maps, args.sizes).items():
+    for name, (vectors, depth) in maps(args.maps, args.sizes, args.npy).items():
         if args.against and name not in saved:
             print(f"skipping {name}: not in {args.against}")
             continue
