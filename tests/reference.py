@@ -246,7 +246,7 @@ def best_directions(
 # Coding plans.
 
 
-def _raster_part(rows, cols, box, parent_box, width, cls):
+def _raster_part(rows, cols, box, parent_box, width, cls, sibling_box=None):
     y0, x0, h, w = box
 
     def at(r, c, ok):
@@ -261,6 +261,9 @@ def _raster_part(rows, cols, box, parent_box, width, cls):
             np.full(rows.shape, -1)
             if parent_box is None
             else (parent_box[0] + rows // 2) * width + parent_box[1] + cols // 2,
+            np.full(rows.shape, -1)
+            if sibling_box is None
+            else (sibling_box[0] + rows) * width + sibling_box[1] + cols,
         ],
         axis=-1,
     )
@@ -274,7 +277,7 @@ def _bandelet_part(rows, cols, square, box, width, k):
     scale = np.zeros(n, np.int64)
     scale[k:] = np.floor(np.log2(index[k:] // k)).astype(np.int64)
     finest = int(np.log2(n // k)) - 1
-    classes = 10 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
+    classes = 16 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
     first = np.where(index < k, 0, k << scale)
 
     def rel(j, ok):
@@ -287,6 +290,7 @@ def _bandelet_part(rows, cols, square, box, width, k):
             rel(index - 2, index - 2 >= first),
             rel(index // 2 + 1, (index >= 2 * k) & (index // 2 + 1 < first)),
             rel(index // 4, index >= 4 * k),
+            np.full(n, -1),
         ],
         axis=-1,
     )
@@ -302,7 +306,7 @@ def _segment(part) -> Segment:
     return Segment(
         order.astype(np.int64).ravel(),
         np.asarray(classes, np.int64).ravel(),
-        neighbours.astype(np.int64).reshape(-1, 5),
+        neighbours.astype(np.int64).reshape(-1, 6),
     )
 
 
@@ -334,9 +338,10 @@ def subband_plan(shape, levels, index, tree, transform_1d):
             np.concatenate([p[j].reshape(-1, *p[j].shape[2:]) for _, p in parts])[sort] for j in range(3)
         )
     else:
-        squares = (np.zeros(0), np.zeros(0), np.zeros((0, 5)))
+        squares = (np.zeros(0), np.zeros(0), np.zeros((0, 6)))
     rows, cols = np.nonzero(~in_square)
-    rest = _raster_part(rows, cols, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2))
+    sibling = subband_box(shape, level, orientation - 1) if orientation else None
+    rest = _raster_part(rows, cols, box, parent, shape[1], 1 + orientation * 5 + min(level - 1, 4), sibling)
     return _segment(squares), _segment(rest)
 
 

@@ -143,3 +143,25 @@ def test_encoder_buffer_grows(rng):
     data = coder.finish()
     got, _ = _decode_flags(data, np.zeros(n, np.int64), 1)
     np.testing.assert_array_equal(got, bits)
+
+
+def test_rarely_used_contexts_learn_from_their_family():
+    # 15 wavelet classes, each coding 6 zeros (no neighbours, no guide): each class's own
+    # significance context sees 6 decisions, their common coarse context all 90.
+    from bandelets.layout import Segment
+
+    n = 90
+    plan = Segment(np.arange(n), 1 + np.arange(n) % 15, np.full((n, 6), -1))
+    q = np.zeros(n, np.int32)
+    spent = np.zeros(n)
+    coder = Coder(entropy.coefficient_contexts())
+    entropy.code_coefficients(coder, q, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), spent)
+    # The same decisions, each class learning alone from 1/2.
+    alone = Coder(16)
+    code_flags(alone, np.zeros(n, np.int64), plan.classes)
+    unbacked = alone.state[entropy._SPENT] / entropy._COST_SCALE
+    assert spent.sum() < 0.6 * unbacked
+    decoder = Coder(entropy.coefficient_contexts(), coder.finish())
+    out = np.ones(n, np.int32)
+    entropy.code_coefficients(decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n))
+    np.testing.assert_array_equal(out, q)

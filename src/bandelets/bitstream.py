@@ -37,8 +37,9 @@ rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adapti
 finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
 directions stream). Version 8 added the vertex count of the source mesh to the geometry-image
 options. Version 9 projects the restoration into the bins every
-:data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one. This build reads
-version 9 only.
+:data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, and changed the
+coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contexts, the sign's
+upper neighbour, the sibling subband, one class per level). This build reads version 9 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which

@@ -54,8 +54,9 @@ class Segment:
         Raveled Mallat-layout position of the i-th coded coefficient.
     classes : ndarray of int64, shape (n,)
         Context class of each.
-    neighbours : ndarray of int64, shape (n, 5)
-        Positions of its context neighbours, -1 where absent: two near, two farther, parent.
+    neighbours : ndarray of int64, shape (n, 6)
+        Positions of its context neighbours, -1 where absent: two near, two farther, parent, and
+        the same position in the subband of the same level coded before (wavelet coefficients).
     """
 
     order: np.ndarray
@@ -64,13 +65,14 @@ class Segment:
 
 
 @njit(cache=True)
-def _raster_part(skip, box, parent_box, width, cls):
+def _raster_part(skip, box, parent_box, width, cls, sibling_box):
     """Wavelet coefficients of the subband ``box`` = (y0, x0, h, w) where ``skip`` (h, w) is
-    False, in raster order; ``parent_box`` (y0, x0) of the coarser subband, or empty."""
+    False, in raster order; ``parent_box`` (y0, x0) of the coarser subband, or empty;
+    ``sibling_box`` (y0, x0) of the subband of the same level coded just before, or empty."""
     y0, x0, h, w = box
     n = skip.size - np.count_nonzero(skip)
     order = np.empty(n, np.int64)
-    neighbours = np.empty((n, 5), np.int64)
+    neighbours = np.empty((n, 6), np.int64)
     i = 0
     for r in range(h):
         for c in range(w):
@@ -85,6 +87,7 @@ def _raster_part(skip, box, parent_box, width, cls):
             neighbours[i, 4] = (
                 (parent_box[0] + r // 2) * width + parent_box[1] + c // 2 if parent_box.size else -1
             )
+            neighbours[i, 5] = (sibling_box[0] + r) * width + sibling_box[1] + c if sibling_box.size else -1
             i += 1
     return order, np.full(n, cls, np.int64), neighbours
 
@@ -101,7 +104,7 @@ def _square_tables(square: int, k: int, width: int) -> tuple[np.ndarray, np.ndar
     scale = np.zeros(n, np.int64)  # 1D scale: wavelets of scale s start at k 2**s
     scale[k:] = np.floor(np.log2(index[k:] // k)).astype(np.int64)
     finest = int(np.log2(n // k)) - 1
-    classes = 10 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
+    classes = 16 + 5 * min(square.bit_length() - 3, 2) + np.where(index < k, 4, np.minimum(finest - scale, 3))
     first = np.where(index < k, 0, k << scale)  # first index of each 1D scale
 
     def rel(j, ok):
@@ -133,7 +136,7 @@ def _bandelet_part(in_square, top, left, sizes, box, width, tables):
         n += sizes[s] * sizes[s]
     order = np.empty(n, np.int64)
     classes = np.empty(n, np.int64)
-    neighbours = np.empty((n, 5), np.int64)
+    neighbours = np.full((n, 6), -1, np.int64)
     i = 0
     for s in range(top.shape[0]):
         size = sizes[s]
@@ -161,7 +164,8 @@ def approximation_plan(shape: tuple[int, int], levels: int) -> Segment:
     """Coding order of the approximation subband of a padded channel of ``shape``."""
     h, w = shape[0] >> levels, shape[1] >> levels
     everything = np.zeros((h, w), np.bool_)
-    return Segment(*_raster_part(everything, (0, 0, h, w), np.zeros(0, np.int64), shape[1], 0))
+    none = np.zeros(0, np.int64)
+    return Segment(*_raster_part(everything, (0, 0, h, w), none, shape[1], 0, none))
 
 
 def subband_plan(
@@ -191,5 +195,6 @@ def subband_plan(
     in_square = np.zeros(box[2:], np.bool_)
     tables = tuple(_square_tables(MIN_WIDTH << j, k, shape[1]) for j in range(_MAX_LEVELS))
     squares = _bandelet_part(in_square, top[bandelet], left[bandelet], sizes[bandelet], box, shape[1], tables)
-    rest = _raster_part(in_square, box, parent, shape[1], 1 + orientation * 3 + min(level - 1, 2))
+    sibling = np.array(subband_box(shape, level, orientation - 1)[:2] if orientation else (), np.int64)
+    rest = _raster_part(in_square, box, parent, shape[1], 1 + orientation * 5 + min(level - 1, 4), sibling)
     return Segment(*squares), Segment(*rest)
