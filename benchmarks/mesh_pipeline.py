@@ -3,11 +3,14 @@
 The mesh is one of ``../shared/data/meshes`` refined by Loop subdivision (default: the bunny,
 3,485 vertices, twice: 55,730 vertices). Stages: load, subdivide (not part of the pipeline),
 checks, spherical parameterization, sampling of the geometry image, encoding at a rate in
-bits per original vertex, decoding, rebuilding the mesh; then the Hausdorff PSNR of the
-rebuilt mesh against the original (not timed in the total). The numba kernels are compiled
+bits per original vertex (side of the geometry image: the one ``mesh-encode`` picks for the
+rate, :func:`bandelets.surfaces.codec.auto_size`, unless ``--size``), decoding the file to a mesh
+of the original's vertex count as ``mesh-decode`` does by default (the image decoded, rebuilt
+and decimated: :func:`bandelets.surfaces.codec.decode_mesh`); then the Hausdorff PSNR of the
+decoded mesh against the original (not timed in the total). The numba kernels are compiled
 (or loaded from their cache) by a tiny encode before the clock starts.
 
-    python benchmarks/mesh_pipeline.py [--mesh bunny.off] [--subdivide 2] [--size 256] [--bpv 4]
+    python benchmarks/mesh_pipeline.py [--mesh bunny.off] [--subdivide 2] [--size N] [--bpv 4]
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import numpy as np
 
 import bandelets
 from bandelets.surfaces import checks, geometry_image, metrics, sphere
-from bandelets.surfaces.codec import load_mesh
+from bandelets.surfaces.codec import auto_size, decode_mesh, encode_mesh, load_mesh
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 
@@ -30,7 +33,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mesh", default="bunny.off")
     parser.add_argument("--subdivide", type=int, default=2, help="Loop subdivision steps (default 2)")
-    parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--size", type=int, default=None, help="default: chosen for the rate")
     parser.add_argument("--bpv", type=float, default=4.0, help="bits per original vertex (default 4)")
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -58,11 +61,11 @@ def main() -> None:
         faces = faces[:, ::-1]
     mapped = stage("spherical parameterization", sphere.spherical_parameterization, vertices, faces)
     print(f"  {mapped.levels} levels, {mapped.iterations} relaxation steps, distortion {mapped.distortion}")
-    image, _ = stage("sampling", geometry_image.sample, vertices, faces, mapped.points, args.size)
-    rate = args.bpv * len(vertices) / args.size**2
-    data = stage("encode", bandelets.encode, image, bpp=rate, kind="geometry-image")
-    decoded = stage("decode", bandelets.decode, data)
-    rebuilt = stage("rebuild mesh", geometry_image.mesh_from_image, decoded)
+    size = args.size or auto_size(args.bpv * len(vertices))
+    image, _ = stage(f"sampling {size} x {size}", geometry_image.sample, vertices, faces, mapped.points, size)
+    data = stage("encode", encode_mesh, mesh, image=image, bits_per_vertex=args.bpv)
+    rebuilt = stage("decode to a mesh", decode_mesh, data)
+    print(f"  {len(rebuilt.vertices)} vertices decoded")
     total = sum(times.values())
     print(f"{'total':28s} {total:7.2f} s  ({8 * len(data) / len(vertices):.2f} bits per vertex)")
     # The machine is shared and its speed varies: OpenJPEG on a 1024 x 1024 RGB image, timed

@@ -213,3 +213,10 @@ def test_mesh_command_errors(tmp_path, capsys):
     assert main(["mesh-decode", str(tmp_path / "missing.bdl"), str(tmp_path / "x.stl")]) == 2
     assert main(["geometry-image", str(torus), str(tmp_path / "t.png")]) == 2
     assert "unsupported output format" in capsys.readouterr().err
+
+
+def test_coarsen_bounds_the_pixels_whatever_the_vertex_count():
+    sphere = octahedral.square_to_sphere(octahedral.grid(32))
+    assert coarsen(sphere, 1000, most=256).shape == (16, 16, 3)  # 1000 alone would keep 32
+    assert coarsen(sphere, 10, most=256).shape == (4, 4, 3)  # the vertex count rules when fewer
+    assert coarsen(sphere[:12, :12], 1, most=4).shape == (6, 6, 3)  # no odd side

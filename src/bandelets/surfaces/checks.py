@@ -12,8 +12,10 @@ import numpy as np
 __all__ = ["check_genus0", "check_memory", "edge_face_counts", "flat_triangles"]
 
 #: Peak bytes per face of the checks and the spherical parameterization (peak resident memory above
-#: the loaded mesh, encoding a 64 x 64 geometry image: 2,040 B/face for 81,920 faces, 4,157 for
-#: 20,480 with the fixed costs; 2,200 for 2M faces in issue 18), rounded up.
+#: the loaded mesh, encoding a 64 x 64 geometry image; coarse-to-fine map, benchmarks/mesh_memory.py:
+#: 1,400 B/face for 445,824 faces, 1,676 for 111,456, 1,948 for 66,472; 4,575 for 27,864, where
+#: fixed costs of about 100 MiB, the imports of pymeshlab and scipy's solvers among them, dominate),
+#: rounded up.
 MEMORY_PER_FACE = 2560
 #: A triangle whose height is below this fraction of its longest edge counts as flat (zero area).
 FLAT = 1e-12

@@ -31,6 +31,7 @@ __all__ = [
     "check_size",
     "MESH_FORMATS",
     "OVERSAMPLING",
+    "DECIMATED_PIXELS",
     "decode_mesh",
     "encode_mesh",
     "load_mesh",
@@ -347,8 +348,8 @@ def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int 
     if vertices == "full":
         return geometry_image.mesh_from_image(image)
     # Quadric decimation keeps what matters of a grid with OVERSAMPLING times the vertices; a
-    # denser one is halved first, to bound the time.
-    image = geometry_image.coarsen(image, OVERSAMPLING * int(vertices))
+    # denser one, or one above DECIMATED_PIXELS, is halved first, to bound the time.
+    image = geometry_image.coarsen(image, OVERSAMPLING * int(vertices), DECIMATED_PIXELS)
     check_mesh_memory(image.shape[0], max_memory, DECIMATION_BYTES_PER_PIXEL)
     return geometry_image.decimate(geometry_image.mesh_from_image(image), int(vertices))
 
@@ -359,6 +360,11 @@ def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int 
 #: 8,311 vertices, 7.5 s and 77.85 dB from 512 x 512, 37 s and 79.73 dB from 1024 x 1024
 #: (the full grid: 80.88 dB); from 256 x 256 at 8 bits per vertex, 70.24 dB against 74.86.
 OVERSAMPLING = 16
+#: Most pixels of the grid that is decimated, whatever the vertex count asked for: the time of the
+#: quadric decimation grows with the grid, not the target. A 55,730-vertex mesh coded at 4 bits per
+#: vertex (a 1024 x 1024 image) took 99 s to decode from its 1024 x 1024 grid (83.5 dB) on the shared
+#: 2-core machine; from 512 x 512, see BENCHMARKS.md (benchmarks/mesh_pipeline.py).
+DECIMATED_PIXELS = 512 * 512
 
 
 #: Peak bytes per pixel of a geometry image rebuilt into a mesh and written to a file (peak

@@ -187,8 +187,9 @@ def mesh_from_image(image: np.ndarray):
     return trimesh.Trimesh(image.reshape(-1, 3), triangulation(image.shape[0]), process=False)
 
 
-def coarsen(image: np.ndarray, vertices: int) -> np.ndarray:
-    """Halve a geometry image (mean of each 2 x 2 block) while its halves keep ``vertices`` pixels.
+def coarsen(image: np.ndarray, vertices: int, most: int | None = None) -> np.ndarray:
+    """Halve a geometry image (mean of each 2 x 2 block) while its halves keep ``vertices`` pixels,
+    or while it has more than ``most`` pixels.
 
     The centre of each 2 x 2 block of the octahedral grid of side ``n`` is the pixel centre of
     the grid of side ``n / 2``, so the mean is the image at half the side, smoothed by one fine
@@ -199,13 +200,17 @@ def coarsen(image: np.ndarray, vertices: int) -> np.ndarray:
     ----------
     image : ndarray of float, shape (n, n, 3)
     vertices : int
+    most : int, optional
+        Most pixels of the result (halving stops at an odd half side even above it).
 
     Returns
     -------
     ndarray of float, shape (m, m, 3)
-        ``m = n / 2**k`` for the largest ``k`` with ``m`` even and ``m^2 >= vertices``.
+        ``m = n / 2**k`` for the largest ``k`` with ``m`` even and ``m^2 >= vertices``, or the
+        smallest ``k`` with ``m^2 <= most`` if that is larger.
     """
-    while image.shape[0] % 4 == 0 and (image.shape[0] // 2) ** 2 >= vertices:
+    most = image.shape[0] ** 2 if most is None else most
+    while image.shape[0] % 4 == 0 and ((image.shape[0] // 2) ** 2 >= vertices or image.shape[0] ** 2 > most):
         half = image.shape[0] // 2
         image = image.reshape(half, 2, half, 2, image.shape[2]).mean(axis=(1, 3))
     return image
