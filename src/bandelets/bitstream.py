@@ -37,9 +37,10 @@ rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adapti
 finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
 directions stream). Version 8 added the vertex count of the source mesh to the geometry-image
 options. Version 9 projects the restoration into the bins every
-:data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, and changed the
+:data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, changed the
 coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contexts, the sign's
-upper neighbour, the sibling subband, one class per level). This build reads version 9 only.
+upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
+files of one tile, :mod:`bandelets.tiling`). This build reads version 9 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -77,6 +78,7 @@ from typing import Literal
 __all__ = [
     "MAX_LIFTING",
     "FORMAT_VERSION",
+    "TILED_CODE",
     "KIND_CODES",
     "TRANSFORM_CODES",
     "WAVELET_CODES",
@@ -116,6 +118,8 @@ __all__ = [
 
 MAGIC = b"BDL\x1a"
 FORMAT_VERSION = 9
+#: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
+TILED_CODE = 255
 
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
@@ -323,6 +327,8 @@ def unpack(
         raise FormatError(
             f".bdl format version {version} is not supported (this build reads version {FORMAT_VERSION})"
         )
+    if fields[2] == TILED_CODE:
+        raise FormatError("a tiled .bdl file: read it whole with bandelets.decode (bandelets.tiling)")
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
     if zlib.crc32(body) != crc:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")

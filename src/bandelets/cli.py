@@ -115,6 +115,14 @@ def _build_parser() -> argparse.ArgumentParser:
         help="lift the two finest CDF 9/7 levels along directions chosen per block (better on creases at "
         "an angle, about twice the decoding time)",
     )
+    p.add_argument(
+        "--tile",
+        type=int,
+        default=512,
+        metavar="N",
+        help="code an image with a side above N pixels in independent tiles of about N x N, two at a time "
+        "(default 512: bounded memory at any size, a region decodes alone)",
+    )
     _common(p)
 
     p = sub.add_parser("decode", help=f"decode a .bdl file into {FORMATS}")
@@ -356,6 +364,7 @@ def _encode(args) -> None:
         max_memory=args.max_memory,
         xy=args.xy,
         lifting=args.lifting,
+        tile=args.tile,
     )
     encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
     write_atomic(args.output, encoded.data)
@@ -377,13 +386,15 @@ def _decode(args) -> None:
     check_suffix(args.output, "output")
     _working(args.quiet)
     start = time.perf_counter()
-    from .bitstream import unpack
-    from .decoder import decode_parsed
+    from .decoder import decode
     from .files import write_array
+    from .tiling import header_of
 
     with _about(args.input):
-        header, streams = unpack(_read_bdl(args.input))
-        decoded = decode_parsed(header, streams, restore=not args.no_restore, max_memory=args.max_memory)
+        data = _read_bdl(args.input)
+        header = header_of(data)
+        progress = sys.stderr.isatty() and not args.quiet
+        decoded = decode(data, restore=not args.no_restore, max_memory=args.max_memory, progress=progress)
     write_array(args.output, decoded, header.kind, header.depth)
     if not args.quiet:
         from .summary import decode_summary
@@ -414,10 +425,16 @@ def _info(args) -> None:
     _working()
     from .bitstream import FORMAT_VERSION, unpack
     from .metrics import bits_per_pixel
+    from .tiling import header_of, is_tiled, read
 
     data = _read_bdl(args.input)
     with _about(args.input):
-        header, streams = unpack(data)
+        header = header_of(data)
+        if is_tiled(data):
+            grid, tiles = read(data)
+            streams = [b"".join(s) for s in zip(*(tile()[1] for tile in tiles), strict=True)]
+        else:
+            streams = unpack(data)[1]
     info = {
         "width": header.width,
         "height": header.height,
@@ -440,6 +457,8 @@ def _info(args) -> None:
         },
         "format_version": FORMAT_VERSION,
     }
+    if is_tiled(data):
+        info |= {"tile": grid.tile, "tiles": len(grid.boxes)}
     if header.kind == "geometry-image":
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
     if header.kind == "normal-map":

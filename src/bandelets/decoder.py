@@ -12,7 +12,7 @@ from itertools import islice
 
 import numpy as np
 
-from . import directional, entropy, frames, metrics, restoration
+from . import directional, entropy, frames, metrics, restoration, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
 from .coding import code_image, code_lifting, new_coders
@@ -32,7 +32,14 @@ __all__ = [
 
 
 def decode(
-    data: bytes, *, restore: bool = True, max_memory: int = MAX_MEMORY, max_work: int = MAX_WORK, **limits
+    data: bytes,
+    *,
+    restore: bool = True,
+    max_memory: int = MAX_MEMORY,
+    max_work: int = MAX_WORK,
+    region: tuple[int, int, int, int] | None = None,
+    progress: bool = False,
+    **limits,
 ) -> np.ndarray:
     """Decode a .bdl file.
 
@@ -49,7 +56,12 @@ def decode(
     max_work : int
         Refuse a file asking for more restoration work than this, iterations times padded
         samples (:func:`bandelets.memory.restoration_work`): the default, 2**28, is at most
-        about 20 s of CPU time (``benchmarks/worst_decode.py``).
+        about 20 s of CPU time (``benchmarks/worst_decode.py``); for a tiled file, of each tile
+        (:mod:`bandelets.tiling`: the time then grows with the tile count, as the image size).
+    region : (row, column, height, width), optional
+        Decode only this box of the image: of a tiled file, only the tiles it touches.
+    progress : bool
+        A progress bar on stderr over the tiles of a tiled file.
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.bitstream.unpack`).
 
@@ -78,8 +90,20 @@ def decode(
         data = bytes(memoryview(data))
     except TypeError:
         raise TypeError(f"decode takes the bytes of a .bdl file, not {type(data).__name__}") from None
+    if tiling.is_tiled(data):
+        return tiling.decode(
+            data,
+            restore=restore,
+            max_memory=max_memory,
+            max_work=max_work,
+            region=region,
+            progress=progress,
+            **limits,
+        )
     header, streams = unpack(data, **limits)
-    return decode_parsed(header, streams, restore=restore, max_memory=max_memory, max_work=max_work)
+    top, left, rows, cols = tiling.check_region(region, header.height, header.width)
+    image = decode_parsed(header, streams, restore=restore, max_memory=max_memory, max_work=max_work)
+    return image[top : top + rows, left : left + cols] if region is not None else image
 
 
 def decode_parsed(

@@ -6,13 +6,12 @@ Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 
-from . import directional, frames, metrics, normalmaps, ratecontrol
+from . import directional, frames, metrics, normalmaps, ratecontrol, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
@@ -39,7 +38,7 @@ from .files import as_read
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
 from .memory import check_memory, restoration_work
-from .options import AUTO_WAVELET, EncodeOptions, check_image, check_threshold, geometry_options
+from .options import AUTO_WAVELET, EncodeOptions, check_image, check_targets, geometry_options
 from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, padded_channels, wavelet_coefficients
@@ -66,6 +65,9 @@ class Encoded:
     trees: list | None = field(default=None, repr=False, compare=False)
     bins: list | None = field(default=None, repr=False, compare=False)
     lifting: list | None = field(default=None, repr=False, compare=False)
+    # A tiled file's angular error (:mod:`bandelets.tiling`), measured tile by tile: its decoded
+    # image is not kept.
+    angles: metrics.AngularError | None = field(default=None, repr=False, compare=False)
 
 
 def encode_at_threshold(
@@ -167,6 +169,7 @@ def encode(
     max_memory: int = MAX_MEMORY,
     xy: bool = False,
     max_work: int = MAX_WORK,
+    tile: int = tiling.TILE,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -229,6 +232,11 @@ def encode(
         Restore for no more iterations than a decoder's ``max_work`` allows
         (:func:`bandelets.memory.check_work`): with the default, the file decodes within the
         default limits of :func:`bandelets.decode`.
+    tile : int
+        An image with a side above ``tile`` pixels is coded in tiles of about ``tile`` x ``tile``
+        (:mod:`bandelets.tiling`: independent tiles at one threshold, two at a time; memory
+        bounded whatever the size, a region can be decoded alone), at least
+        :data:`~bandelets.tiling.MIN_TILE`.
 
     Returns
     -------
@@ -265,6 +273,7 @@ def encode(
         max_memory=max_memory,
         xy=xy,
         max_work=max_work,
+        tile=tile,
     )
     return encode_with_stats(
         array, options, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle
@@ -286,23 +295,17 @@ def encode_with_stats(
     decoded file at the source's depth and what :func:`decode` returns for it (``measured``
     costs a decode without the restoration)."""
     targets = dict(bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle)
+    check_targets(options.kind, **targets)
     if options.wavelet == AUTO_WAVELET:
         return _best_of_wavelets(array, options, measured=measured, **targets)
+    if tiling.tiled(array, options):
+        return tiling.encode(array, options, measured=measured, **targets)
     kind, max_memory, depth, layout = options.kind, options.max_memory, options.depth, "xyz"
     if kind == "normal-map":
         array, depth, layout = normalmaps.prepare(array, depth, options.xy)
     x = given = check_image(array, kind, max_memory)
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
-    if sum(v is not None for v in targets.values()) != 1:
-        raise ValueError("give exactly one of bpp, threshold, psnr or max_angle")
-    name, value = next((k, v) for k, v in targets.items() if v is not None)
-    if not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    if max_angle is not None and kind != "normal-map":
-        raise ValueError("max_angle applies to normal maps only")
-    if threshold is not None:
-        check_threshold(threshold)
     levels = max_levels(x.shape[:2])
     geometry = geometry_options(options, x.shape[:2])
     if options.extension == "spherical":  # no padding: the fold must stay on the image's border
@@ -379,8 +382,6 @@ def encode_with_stats(
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
         if bpp is not None:
-            if not (np.isfinite(bpp) and bpp > 0):
-                raise ValueError(f"bpp must be a positive number, got {bpp}")
             target = int(bpp * x.shape[0] * x.shape[1] / 8)
             if target < HEADER_BYTES:
                 raise ValueError(
@@ -393,8 +394,6 @@ def encode_with_stats(
                 coefficients, lifting = _lifted(coded, levels, lifting_levels, t_first)
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
-            if not (np.isfinite(max_angle) and 0 < max_angle < 180):
-                raise ValueError(f"max_angle must be a number of degrees from 0 to 180, got {max_angle}")
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
             goal, t_guess = -20.0 * np.log10(max_angle), min(t_max, np.radians(max_angle))
 
@@ -405,8 +404,6 @@ def encode_with_stats(
             def label(q: float) -> str:
                 return f"p99 angle of {10 ** (-q / 20):.3g} degrees"
         else:
-            if not (np.isfinite(psnr) and psnr > 0):
-                raise ValueError(f"psnr must be a positive number, got {psnr}")
             goal = float(psnr)
             # Start where a uniform quantizer's error would meet the target.
             t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3

@@ -25,7 +25,8 @@ from imageio.config.plugins import PluginConfig
 from imageio.core.request import URI_BYTES, InitializationError, Request
 from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 
-from .bitstream import MAGIC, unpack
+from .bitstream import MAGIC
+from .tiling import header_of
 from .decoder import decode
 from .encoder import encode
 
@@ -68,7 +69,7 @@ class BandeletsPlugin(PluginV3):
         return None
 
     def properties(self, *, index: int | None = None) -> ImageProperties:
-        header, _ = unpack(self._data)
+        header = header_of(self._data)
         channels = header.channels
         if header.kind == "normal-map" and header.layout != "xy":
             channels = 3  # z is rebuilt when only x, y were coded
@@ -77,7 +78,7 @@ class BandeletsPlugin(PluginV3):
 
     def metadata(self, *, index: int | None = None, exclude_applied: bool = True) -> dict:
         """The header's fields (:class:`bandelets.bitstream.Header`)."""
-        header, _ = unpack(self._data)
+        header = header_of(self._data)
         return dict(vars(header))
 
 

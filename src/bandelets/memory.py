@@ -10,6 +10,7 @@ file says nothing about the work it asks for: the decoder estimates it from the 
 from __future__ import annotations
 
 from .bitstream import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, Header
+from .tiling import TILE, WORKERS, Grid, cuts
 from .wavelets import padded_shape
 
 __all__ = [
@@ -42,6 +43,9 @@ _DECODE_FRAMES_PER_PIXEL = 48
 # and 1024 x 1024 x 1, 237 B/pixel for 512 x 512 x 3, against 54 and 90 without.
 _DECODE_RESTORATION_PER_SAMPLE = 56
 _ENCODE_FIXED, _ENCODE_PER_SAMPLE = 160 * 2**20, 96
+# A tiled encode holds, besides the tiles in flight, the angular error of every pixel of a
+# normal map (float32, for its quality targets and the summary) and the file.
+_TILED_ENCODE_PER_PIXEL = 8
 # The fixed cost of a restoration iteration, in samples: the Python around the transforms
 # (32 x 32 x 3 with local frames restores at 15 to 25 ms an iteration, 512 x 512 x 2 at
 # 300 to 400 ns a sample, in one run on the 2-core machine).
@@ -59,18 +63,27 @@ def decoder_memory(
     return rows * cols * (_DECODE_PER_PIXEL + extra + per_sample * channels)
 
 
-def encoder_memory(height: int, width: int, channels: int) -> int:
-    """Estimated peak bytes the encoder allocates for an image of this size."""
-    rows, cols = padded_shape((height, width), MAX_LEVELS)
-    return _ENCODE_FIXED + rows * cols * channels * _ENCODE_PER_SAMPLE
+def encoder_memory(height: int, width: int, channels: int, tile: int = 0) -> int:
+    """Estimated peak bytes the encoder allocates for an image of this size, coded in tiles of
+    side ``tile`` (:mod:`bandelets.tiling`; 0: in one piece)."""
+    grid = Grid(height, width, tile or max(height, width))
+    if not grid.tiled:
+        rows, cols = padded_shape((height, width), MAX_LEVELS)
+        return _ENCODE_FIXED + rows * cols * channels * _ENCODE_PER_SAMPLE
+    rows, cols = (max(s.stop - s.start for s in cuts(n, tile)) for n in (height, width))
+    in_flight = WORKERS * (encoder_memory(rows, cols, channels) - _ENCODE_FIXED)
+    return _ENCODE_FIXED + in_flight + height * width * _TILED_ENCODE_PER_PIXEL
 
 
-def check_encodable(height: int, width: int, channels: int, max_memory: int = MAX_MEMORY) -> None:
+def check_encodable(
+    height: int, width: int, channels: int, max_memory: int = MAX_MEMORY, tile: int = TILE
+) -> None:
     """Raise ``ValueError`` for an image the encoder refuses before any work on it: one whose
-    encoding needs more than ``max_memory`` bytes (:func:`encoder_memory`), or whose file the
+    encoding in tiles of ``tile`` (0: in one piece) needs more than ``max_memory`` bytes
+    (:func:`encoder_memory`), or whose file the
     default decoder would refuse (a side above :data:`~bandelets.bitstream.MAX_SIDE`, more samples
     than :data:`~bandelets.bitstream.MAX_SAMPLES`)."""
-    need = encoder_memory(height, width, channels)
+    need = encoder_memory(height, width, channels, tile)
     if need > max_memory:
         raise ValueError(
             f"encoding a {width} x {height} x {channels} image needs about "

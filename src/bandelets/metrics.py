@@ -16,6 +16,7 @@ from .files import as_read
 
 __all__ = [
     "AngularError",
+    "angles",
     "angular_error",
     "bits_per_pixel",
     "bd_psnr",
@@ -76,14 +77,20 @@ def angular_error(reference: np.ndarray, decoded: np.ndarray) -> AngularError:
     >>> [round(v, 6) for v in angular_error(up, turned)]  # mean, 99th percentile, max
     [1.5, 2.97, 3.0]
     """
+    errors = angles(reference, decoded)
+    return AngularError(float(errors.mean()), float(np.percentile(errors, 99)), float(errors.max()))
+
+
+def angles(reference: np.ndarray, decoded: np.ndarray) -> np.ndarray:
+    """The angle between the normals of two maps at each pixel, in degrees, shape (H * W,)
+    (arguments of :func:`angular_error`)."""
     a, b = (np.asarray(v, np.float64) for v in (reference, decoded))
     a, b = (unit_vectors(with_z(v) if v.shape[-1] == 2 else v) for v in (a, b))
     if a.shape != b.shape or a.shape[-1] != 3:
         raise ValueError(f"angular_error needs two maps of normals of one shape, got {a.shape} and {b.shape}")
     # atan2 of the cross and dot products: exact for small angles, where arccos(dot) is not.
     sine = np.linalg.norm(np.cross(a, b), axis=-1)
-    angles = np.degrees(np.arctan2(sine, np.einsum("...c,...c->...", a, b))).ravel()
-    return AngularError(float(angles.mean()), float(np.percentile(angles, 99)), float(angles.max()))
+    return np.degrees(np.arctan2(sine, np.einsum("...c,...c->...", a, b))).ravel()
 
 
 def peak(reference: np.ndarray, kind: str = "image") -> float:

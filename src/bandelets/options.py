@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numbers
+
 import numpy as np
 
 from .bitstream import (
@@ -31,6 +33,7 @@ from .bitstream import (
     Wavelet,
 )
 from .memory import check_encodable
+from .tiling import MIN_TILE, TILE
 from .wavelets import check_extension
 
 __all__ = [
@@ -38,6 +41,7 @@ __all__ = [
     "EncodeOptions",
     "check_image",
     "check_options",
+    "check_targets",
     "check_threshold",
     "geometry_options",
 ]
@@ -81,8 +85,11 @@ class EncodeOptions:
     xy: bool = False
     max_work: int = MAX_WORK
     mesh_vertices: int = 0
+    tile: int = TILE
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.tile, (int, np.integer)) and self.tile >= MIN_TILE):
+            raise ValueError(f"tile must be an integer of at least {MIN_TILE}, got {self.tile!r}")
         if self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.xy and self.kind != "normal-map":
@@ -135,7 +142,7 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
         raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
     if kind != "image" and x.shape[2] != 3:
         raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
-    check_encodable(*x.shape, max_memory)
+    check_encodable(*x.shape, max_memory, tile=0)
     if not np.all(np.isfinite(x)):
         raise ValueError("input contains NaN or infinite values")
     return x
@@ -150,6 +157,24 @@ def check_options(transform: str, wavelet: str, transform_1d: str, wavelets: tup
     ):
         if value not in choices:
             raise ValueError(f"unknown {what} {value!r}; choose one of {', '.join(choices)}")
+
+
+def check_targets(kind: str, **targets) -> None:
+    """``ValueError`` (``TypeError`` for a non-number) unless exactly one of the targets ``bpp``,
+    ``threshold``, ``psnr`` and ``max_angle`` is given, and it is usable for ``kind``."""
+    if sum(v is not None for v in targets.values()) != 1:
+        raise ValueError("give exactly one of bpp, threshold, psnr or max_angle")
+    name, value = next((k, v) for k, v in targets.items() if v is not None)
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    if name == "max_angle" and kind != "normal-map":
+        raise ValueError("max_angle applies to normal maps only")
+    if name == "threshold":
+        check_threshold(value)
+    elif name == "max_angle" and not (np.isfinite(value) and 0 < value < 180):
+        raise ValueError(f"max_angle must be a number of degrees from 0 to 180, got {value}")
+    elif not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive number, got {value}")
 
 
 def check_threshold(threshold: float) -> None:

@@ -93,7 +93,7 @@ def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, 
             return
 
 
-def size_model(magnitudes: np.ndarray) -> Callable[[float], float]:
+def size_model(magnitudes: np.ndarray, count: int | None = None) -> Callable[[float], float]:
     """A model of the log file size (bytes) against ``x = log T``, from the coefficients.
 
     With ``k`` of the ``N`` coefficients above ``T``, ``P = N h(k / N) + 2 k + sum log2(|c| / T)``
@@ -106,17 +106,20 @@ def size_model(magnitudes: np.ndarray) -> Callable[[float], float]:
     Parameters
     ----------
     magnitudes : ndarray, shape (N,)
-        Absolute values of all coefficients, any order.
+        Absolute values of all coefficients, any order, or of a regular sample of them.
+    count : int, optional
+        How many coefficients there are, when ``magnitudes`` is a sample (the tiles of a large
+        image, :mod:`bandelets.tiling`).
 
     Returns
     -------
     callable ``x -> log(bytes)``, decreasing.
     """
     magnitudes = np.asarray(magnitudes, np.float64).ravel()
-    n = magnitudes.size
+    n = magnitudes.size if count is None else count
     # A model needs no more than a regular sample of a million (an odd step: no aliasing
     # with the power-of-two layout of the subbands).
-    ordered = np.sort(magnitudes[:: max(1, n // 2**20) | 1])
+    ordered = np.sort(magnitudes[:: max(1, magnitudes.size // 2**20) | 1])
     scale = n / ordered.size
     logs = np.concatenate([[0.0], np.cumsum(np.log2(np.maximum(ordered, 1e-300)))])
     alpha, beta = SIZE_MODEL

@@ -46,7 +46,7 @@ def encode_summary(
     note = ""
     if kind == "normal-map":
         reference = array[..., :2] if xy else array
-        error = angular_error(reference, as_read(encoded.decoded, kind, depth))
+        error = encoded.angles or angular_error(reference, as_read(encoded.decoded, kind, depth))
         line += f", angle mean {error.mean:.2f} p99 {error.p99:.2f} max {error.max:.1f} deg"
         if reference.shape[-1] == 3:
             note = lengths_note(reference)

@@ -1,0 +1,127 @@
+"""Tiled files (format version 9, :mod:`bandelets.tiling`): small tiles keep these tests fast."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import bandelets
+from bandelets import cli, tiling
+from bandelets.bitstream import FormatError, unpack
+from bandelets.encoder import encode_with_stats
+from bandelets.memory import check_encodable
+from bandelets.metrics import angular_error, psnr
+from bandelets.options import EncodeOptions
+from bandelets.samples import crease_normal_map
+
+
+@pytest.fixture(scope="module")
+def normals() -> np.ndarray:
+    return crease_normal_map(96)[:, :80]
+
+
+@pytest.fixture(scope="module")
+def tiled_file(normals) -> bytes:
+    return bandelets.encode(normals, bpp=1.0, kind="normal-map", tile=32)
+
+
+def test_cuts_leave_no_thin_tile():
+    assert tiling.cuts(80, 32) == [slice(0, 32), slice(32, 64), slice(64, 80)]
+    assert tiling.cuts(70, 32) == [slice(0, 32), slice(32, 70)]  # 6 pixels left: joined
+    assert tiling.cuts(32, 32) == [slice(0, 32)]
+    assert not tiling.Grid(39, 39, 32).tiled
+
+
+def test_a_tiled_file_meets_its_rate_with_one_threshold_everywhere(normals, tiled_file):
+    assert tiling.is_tiled(tiled_file)
+    target = normals.shape[0] * normals.shape[1] / 8
+    assert 0.97 * target <= len(tiled_file) <= target
+    grid, tiles = tiling.read(tiled_file)
+    assert len(grid.boxes) == 9
+    assert len({tile()[0].threshold for tile in tiles}) == 1
+
+
+def test_a_tiled_file_decodes_close_to_the_untiled_one(normals, tiled_file):
+    assert bandelets.decode(tiled_file).shape == normals.shape
+    # At one threshold: the same error, a few more bytes (the tiles' headers and coarse levels).
+    tiled, untiled = (bandelets.encode(normals, threshold=0.01, kind="normal-map", tile=t) for t in (32, 512))
+    assert len(untiled) < len(tiled) < 1.5 * len(untiled)
+    errors = [psnr(normals, bandelets.decode(data), "normal-map") for data in (tiled, untiled)]
+    assert errors[0] > errors[1] - 1.0
+
+
+def test_a_region_decodes_only_the_tiles_it_touches(tiled_file):
+    whole = bandelets.decode(tiled_file)
+    region = bandelets.decode(tiled_file, region=(10, 20, 30, 40))
+    assert np.array_equal(region, whole[10:40, 20:60])
+    # Spoil the last tile: a region away from it still decodes, the whole file does not.
+    spoiled = bytearray(tiled_file)
+    spoiled[-10] ^= 0xFF
+    assert np.array_equal(bandelets.decode(bytes(spoiled), region=(0, 0, 32, 32)), whole[:32, :32])
+    with pytest.raises(FormatError, match="CRC32"):
+        bandelets.decode(bytes(spoiled))
+    with pytest.raises(ValueError, match="region"):
+        bandelets.decode(tiled_file, region=(90, 0, 10, 10))
+
+
+def test_a_quality_target_holds_for_the_whole_decoded_image(normals):
+    options = EncodeOptions(kind="normal-map", tile=32, restore=False)
+    encoded = encode_with_stats(normals, options, psnr=42.0, measured=True)
+    decoded = bandelets.decode(encoded.data)
+    assert encoded.psnr == pytest.approx(psnr(normals, decoded, "normal-map"), abs=1e-6)
+    assert encoded.psnr >= 42.0
+    assert encoded.angles.p99 == pytest.approx(angular_error(normals, decoded).p99, rel=1e-4)
+    encoded = encode_with_stats(normals, options, max_angle=3.0)
+    assert angular_error(normals, bandelets.decode(encoded.data)).p99 <= 3.0
+
+
+def test_an_image_of_one_tile_is_a_plain_file():
+    image = np.linspace(0.0, 1.0, 38 * 36).reshape(38, 36)
+    data = bandelets.encode(image, threshold=0.01, tile=32)  # 6 rows left: one tile
+    assert not tiling.is_tiled(data)
+    assert data == bandelets.encode(image, threshold=0.01)
+    region = bandelets.decode(data, region=(1, 2, 3, 4))
+    assert np.array_equal(region, bandelets.decode(data)[1:4, 2:6])
+
+
+def test_a_gray_image_tiles_and_keeps_its_shape():
+    y, x = np.mgrid[0:70, 0:100] / 50
+    image = np.tanh(8 * (x - 0.6 * y - 0.3))
+    decoded = bandelets.decode(bandelets.encode(image, threshold=0.01, tile=32))
+    assert decoded.shape == image.shape
+    assert np.abs(decoded - image).max() < 0.05
+
+
+def test_every_truncation_and_a_bad_table_are_one_line_format_errors(tiled_file):
+    for n in range(0, len(tiled_file), 97):
+        with pytest.raises(FormatError) as caught:
+            bandelets.decode(tiled_file[:n])
+        assert "\n" not in str(caught.value)
+    table = bytearray(tiled_file)
+    table[20] ^= 1  # the first tile's length: the table's CRC fails
+    with pytest.raises(FormatError, match="tile table"):
+        bandelets.decode(bytes(table))
+    with pytest.raises(FormatError, match="tiled"):
+        unpack(tiled_file)
+
+
+def test_large_maps_fit_the_default_memory_limit_in_tiles():
+    check_encodable(4096, 4096, 3)
+    check_encodable(8192, 8192, 3)
+    with pytest.raises(ValueError, match="MiB"):
+        check_encodable(4096, 4096, 3, tile=0)
+
+
+def test_cli_encodes_decodes_and_describes_a_tiled_file(tmp_path, normals, tiled_file, capsys):
+    source = tmp_path / "n.npy"
+    np.save(source, normals)
+    assert cli.main(["encode", str(source), str(tmp_path / "n.bdl"), "--kind", "normal-map", "--tile", "32"]) == 0
+    assert "PSNR" in capsys.readouterr().err
+    assert cli.main(["info", str(tmp_path / "n.bdl")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["tiles"], info["tile"], info["width"], info["height"]) == (9, 32, 80, 96)
+    assert info["bytes"] == (tmp_path / "n.bdl").stat().st_size
+    assert cli.main(["decode", str(tmp_path / "n.bdl"), str(tmp_path / "d.npy")]) == 0
+    assert np.load(tmp_path / "d.npy").shape == normals.shape
