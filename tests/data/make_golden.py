@@ -65,6 +65,10 @@ GOLDEN = {
         normal_map_24x20,
         {"threshold": 0.005, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
+    "normal24x20-tiled.bdl": (
+        normal_map_24x20,
+        {"threshold": 0.005, "kind": "normal-map", "transform": "bandelet", "tile": 16},
+    ),
     "facing16.bdl": (
         facing_away_16,
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet"},
