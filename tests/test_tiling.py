@@ -117,7 +117,10 @@ def test_large_maps_fit_the_default_memory_limit_in_tiles():
 def test_cli_encodes_decodes_and_describes_a_tiled_file(tmp_path, normals, tiled_file, capsys):
     source = tmp_path / "n.npy"
     np.save(source, normals)
-    assert cli.main(["encode", str(source), str(tmp_path / "n.bdl"), "--kind", "normal-map", "--tile", "32"]) == 0
+    assert (
+        cli.main(["encode", str(source), str(tmp_path / "n.bdl"), "--kind", "normal-map", "--tile", "32"])
+        == 0
+    )
     assert "PSNR" in capsys.readouterr().err
     assert cli.main(["info", str(tmp_path / "n.bdl")]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -26,9 +26,9 @@ from imageio.core.request import URI_BYTES, InitializationError, Request
 from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 
 from .bitstream import MAGIC
-from .tiling import header_of
 from .decoder import decode
 from .encoder import encode
+from .tiling import header_of
 
 __all__ = ["BandeletsPlugin", "register"]
 

@@ -7,10 +7,9 @@ work on it.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 from typing import Literal
-
-import numbers
 
 import numpy as np
 

@@ -76,13 +76,14 @@ class Grid:
 
     @property
     def tiled(self) -> bool:
-        return len(self.boxes) > 1
+        """More than one tile (a hostile size makes no list of boxes to find out)."""
+        return self.height > self.tile + self.tile // 4 - 1 or self.width > self.tile + self.tile // 4 - 1
 
 
 def cuts(size: int, tile: int) -> list[slice]:
     """The spans of the tiles along a side of ``size`` pixels: from each multiple of ``tile``,
     the last one taking the remainder when it is below ``tile / 4``."""
-    starts = list(range(0, size, tile))
+    starts = list(range(0, size, tile)) or [0]
     if len(starts) > 1 and size - starts[-1] < tile // 4:
         starts.pop()
     ends = starts[1:] + [size]
@@ -118,10 +119,13 @@ def read(data: bytes, *, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLE
     if not MIN_TILE <= tile <= max_side:
         raise FormatError(f"corrupt .bdl file: tile side {tile}")
     grid = Grid(height, width, tile)
+    count = len(cuts(height, tile)) * len(cuts(width, tile))
+    if count < 2:
+        raise FormatError(f"corrupt .bdl file: a tiled file of one {tile} x {tile} tile")
+    table_end = _HEAD.size + 4 * count
+    if len(data) < table_end + 4:  # before the grid's boxes are made: a few bytes may claim millions
+        raise FormatError(f"truncated .bdl file ({len(data)} bytes for {count} tiles)")
     boxes = grid.boxes
-    table_end = _HEAD.size + 4 * len(boxes)
-    if len(boxes) < 2 or len(data) < table_end + 4:
-        raise FormatError(f"truncated .bdl file ({len(data)} bytes for {len(boxes)} tiles)")
     if zlib.crc32(data[:table_end]) != struct.unpack_from("<I", data, table_end)[0]:
         raise FormatError("corrupt .bdl file (CRC32 mismatch in the tile table)")
     lengths = struct.unpack_from(f"<{len(boxes)}I", data, _HEAD.size)
@@ -134,7 +138,9 @@ def read(data: bytes, *, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLE
 
     def tile_reader(i: int):
         def parse() -> tuple[Header, tuple[bytes, bytes, bytes]]:
-            header, streams = unpack(data[starts[i] : starts[i + 1]], max_side=max_side, max_samples=max_samples)
+            header, streams = unpack(
+                data[starts[i] : starts[i + 1]], max_side=max_side, max_samples=max_samples
+            )
             rows, cols = boxes[i]
             if (header.height, header.width) != (rows.stop - rows.start, cols.stop - cols.start):
                 raise FormatError(f"corrupt .bdl file: tile {i} is {header.width} x {header.height}")
@@ -217,7 +223,10 @@ def decode(
     wanted = [
         (i, box)
         for i, box in enumerate(grid.boxes)
-        if box[0].start < top + rows and top < box[0].stop and box[1].start < left + cols and left < box[1].stop
+        if box[0].start < top + rows
+        and top < box[0].stop
+        and box[1].start < left + cols
+        and left < box[1].stop
     ]
     parsed = [(box, tiles[i]()) for i, box in wanted]
     headers = [replace(h, restoration=0) if not restore else h for _, (h, _) in parsed]
@@ -262,7 +271,9 @@ def check_region(region, height: int, width: int) -> tuple[int, int, int, int]:
         top, left, rows, cols = (int(v) for v in region)
     except (TypeError, ValueError):
         raise ValueError(f"region must be (row, column, height, width), got {region!r}") from None
-    if not (0 <= top and 0 <= left and rows > 0 and cols > 0 and top + rows <= height and left + cols <= width):
+    if not (
+        0 <= top and 0 <= left and rows > 0 and cols > 0 and top + rows <= height and left + cols <= width
+    ):
         raise ValueError(f"region {region!r} is not a box inside the {width} x {height} image")
     return top, left, rows, cols
 
@@ -296,7 +307,9 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
 
     source = np.asarray(array)
     grid = Grid(source.shape[0], source.shape[1], options.tile)
-    check_encodable(grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, options.tile)
+    check_encodable(
+        grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, options.tile
+    )
     kind = options.kind
     tile_options = replace(options, progress=False)
 
@@ -333,12 +346,18 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
                 return result
             sse, samples = sum(tile.sse for tile in tiles), sum(tile.samples for tile in tiles)
             top = metrics.peak(np.concatenate([tile.extremes for tile in tiles]), kind)
-            result = replace(result, psnr=float("inf") if sse == 0 else 20.0 * np.log10(top / np.sqrt(sse / samples)))
+            result = replace(
+                result, psnr=float("inf") if sse == 0 else 20.0 * np.log10(top / np.sqrt(sse / samples))
+            )
             if kind == "normal-map":
                 angles = np.concatenate([tile.angles for tile in tiles])
                 result = replace(
                     result,
-                    angles=metrics.AngularError(float(angles.mean(dtype=np.float64)), float(np.percentile(angles, 99)), float(angles.max())),
+                    angles=metrics.AngularError(
+                        float(angles.mean(dtype=np.float64)),
+                        float(np.percentile(angles, 99)),
+                        float(angles.max()),
+                    ),
                 )
             return result
 
@@ -351,7 +370,9 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
             if target < HEADER_BYTES:
                 raise ValueError(f"target of {bpp:g} bpp ({target} bytes) cannot be reached")
             model = ratecontrol.size_model(magnitudes, count)
-            best = ratecontrol.for_size(lambda t: encode_at(t, False, False), target, t_max, model, None, MIN_THRESHOLD)
+            best = ratecontrol.for_size(
+                lambda t: encode_at(t, False, False), target, t_max, model, None, MIN_THRESHOLD
+            )
             if options.restore or measured:  # the same tiles, restored and measured
                 best = encode_at(best.threshold, options.restore, measured)
             return best
@@ -373,7 +394,14 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
                 return f"PSNR of {q:.2f} dB"
 
         return ratecontrol.for_quality(
-            lambda t: encode_at(t, options.restore, True), quality, goal, t_max, t_guess, None, label, MIN_THRESHOLD
+            lambda t: encode_at(t, options.restore, True),
+            quality,
+            goal,
+            t_max,
+            t_guess,
+            None,
+            label,
+            MIN_THRESHOLD,
         )
 
 
@@ -413,7 +441,11 @@ def _squared_error(reference: np.ndarray, decoded: np.ndarray, kind: str) -> tup
     compared = _compared(reference, kind)
     if kind == "normal-map" and reference.shape[-1] == 2:
         decoded = metrics.with_z(decoded)
-    return float(np.sum((compared - decoded.reshape(compared.shape)) ** 2)), compared.size, _extremes(compared)
+    return (
+        float(np.sum((compared - decoded.reshape(compared.shape)) ** 2)),
+        compared.size,
+        _extremes(compared),
+    )
 
 
 #: Coefficients the size model of rate control samples (:func:`bandelets.ratecontrol.size_model`).
