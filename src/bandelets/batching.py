@@ -49,6 +49,7 @@ from .metrics import angular_error, bits_per_pixel, psnr
 from .rd import MESH_SUFFIXES
 from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
 from .surfaces.metrics import hausdorff_psnr
+from .tiling import TILE
 
 __all__ = [
     "COLUMNS",
@@ -297,7 +298,7 @@ def memory_estimate(path: Path, kind: str, target: dict) -> int:
         return 0
     h, w, c = shape
     # The encoder's peak, the decoder's for the measurement, and the source and decoded arrays.
-    return encoder_memory(h, w, c) + decoder_memory(h, w, c, 1, True, True) + 4 * 8 * h * w * c
+    return encoder_memory(h, w, c, TILE) + decoder_memory(h, w, c, 1, True, True, TILE) + 4 * 8 * h * w * c
 
 
 def _image_shape(path: Path) -> tuple[int, int, int] | None:

@@ -53,10 +53,21 @@ _ITERATION_SAMPLES = 2**16
 
 
 def decoder_memory(
-    height: int, width: int, channels: int, levels: int, frames: bool = False, restoration: bool = False
+    height: int,
+    width: int,
+    channels: int,
+    levels: int,
+    frames: bool = False,
+    restoration: bool = False,
+    tile: int = 0,
 ) -> int:
     """Estimated peak bytes the decoder allocates for an image of this size (``frames``: local
-    frames; ``restoration``: restoration iterations)."""
+    frames; ``restoration``: restoration iterations), coded in tiles of side ``tile`` (0: in one
+    piece; :func:`bandelets.tiling.decode` estimates a file from its tiles' headers)."""
+    if tile and Grid(height, width, tile).tiled:
+        rows, cols = (max(s.stop - s.start for s in cuts(n, tile)) for n in (height, width))
+        in_flight = WORKERS * decoder_memory(rows, cols, channels, levels, frames, restoration)
+        return in_flight + 8 * height * width * channels
     rows, cols = padded_shape((height, width), levels)
     extra = _DECODE_FRAMES_PER_PIXEL if frames else 0
     per_sample = _DECODE_PER_SAMPLE + (_DECODE_RESTORATION_PER_SAMPLE if restoration else 0)
@@ -66,8 +77,7 @@ def decoder_memory(
 def encoder_memory(height: int, width: int, channels: int, tile: int = 0) -> int:
     """Estimated peak bytes the encoder allocates for an image of this size, coded in tiles of
     side ``tile`` (:mod:`bandelets.tiling`; 0: in one piece)."""
-    grid = Grid(height, width, tile or max(height, width))
-    if not grid.tiled:
+    if not (tile and Grid(height, width, tile).tiled):
         rows, cols = padded_shape((height, width), MAX_LEVELS)
         return _ENCODE_FIXED + rows * cols * channels * _ENCODE_PER_SAMPLE
     rows, cols = (max(s.stop - s.start for s in cuts(n, tile)) for n in (height, width))
