@@ -13,7 +13,7 @@ a child process whose high-water mark is reset once the map or file is made, Lin
 8192 x 8192 on, the map is held as 8-bit samples, as read from a PNG: its float64 array alone
 would take 1.5 GiB). Maps above 512 x 512 are coded in tiles (:mod:`bandelets.tiling`).
 
-    python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start]
+    python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start] [--tile 512]
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def _cold_start_seconds() -> float:
     return float(out.stdout.split()[-1])
 
 
-def _peak_memory_mib(size: int, what: str) -> str:
+def _peak_memory_mib(size: int, what: str, tile: int) -> str:
     """Peak resident memory of a process during one bandelet encode at 1 bpp or one decode of
     that file (Linux: VmHWM, reset after the map, or the file, is made so that only the
     measured call counts; imports included), or the one-line error that refused it."""
@@ -75,9 +75,10 @@ def _peak_memory_mib(size: int, what: str) -> str:
     )
     if size >= 8192:
         make += "import numpy as np; n = np.round((n + 1) * 127.5).astype(np.uint8); "
+    encode = f"bandelets.encode(n, bpp=1, kind='normal-map', tile={tile})"
     if what == "decode":
-        make += "data = bandelets.encode(n, bpp=1, kind='normal-map'); "
-    call = "bandelets.encode(n, bpp=1, kind='normal-map')" if what == "encode" else "bandelets.decode(data)"
+        make += f"data = {encode}; "
+    call = encode if what == "encode" else "bandelets.decode(data)"
     code = (
         make
         + "open('/proc/self/clear_refs', 'w').write('5')\n"
@@ -102,6 +103,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="256,512,1024,2048")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--tile", type=int, default=512, help="tile side (bandelets.tiling; default 512)")
     parser.add_argument("--memory", action="store_true", help="peak RSS of an encode and a decode per size")
     parser.add_argument(
         "--no-cold-start", action="store_true", help="skip the cold start (empty numba cache)"
@@ -126,9 +128,9 @@ def main() -> None:
             continue
         normals = crease_normal_map(size, supersampling=1 if size > 1024 else 4)
         cpu: list[float] = []
-        data = bandelets.encode(normals, bpp=1, kind="normal-map")
+        data = bandelets.encode(normals, bpp=1, kind="normal-map", tile=args.tile)
         rated = _median_seconds(
-            partial(bandelets.encode, normals, bpp=1, kind="normal-map"), args.repeat, cpu
+            partial(bandelets.encode, normals, bpp=1, kind="normal-map", tile=args.tile), args.repeat, cpu
         )
         decode = _median_seconds(partial(bandelets.decode, data), args.repeat, cpu)
         plain = _median_seconds(partial(bandelets.decode, data, restore=False), args.repeat, cpu)
@@ -166,8 +168,8 @@ def main() -> None:
         )
         if args.memory:
             print(
-                f"      peak RSS: encode {_peak_memory_mib(size, 'encode')}, "
-                f"decode {_peak_memory_mib(size, 'decode')}"
+                f"      peak RSS: encode {_peak_memory_mib(size, 'encode', args.tile)}, "
+                f"decode {_peak_memory_mib(size, 'decode', args.tile)}"
             )
     if 512 in per_pixel:
         for size, value in per_pixel.items():
