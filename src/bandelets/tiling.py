@@ -473,7 +473,7 @@ def _coefficient_sample(source: np.ndarray, grid: Grid, options) -> tuple[np.nda
             channels, options.wavelet, max_levels(channels.shape[:2]), options.extension
         )
         magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
-        samples.append(magnitudes[::step])
+        samples.append(magnitudes[::step].copy())  # a view would hold every tile's coefficients
         count += magnitudes.size
         largest = max(largest, float(magnitudes.max()))
     weight = options.normal_weight if options.frames else 1.0
