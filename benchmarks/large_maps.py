@@ -7,7 +7,8 @@ sampled), encoded at 1 bpp (rate control and the restoration search included, un
 and process CPU time (all threads) of each, and the peak resident memory of the encode and of
 the decode (Linux: VmHWM, reset once the map, or the file, is made; imports and the map
 itself included; the decode's in a new process). ``--uint8`` holds the map as 8-bit samples,
-as read from a PNG (its float64 array alone is 1.5 GiB at 8192 x 8192). Maps above 512 x 512 are coded in tiles (``bandelets.tiling``).
+as read from a PNG (its float64 array alone is 1.5 GiB at 8192 x 8192). Maps above 512 x 512
+are coded in tiles (``bandelets.tiling``).
 
     python benchmarks/large_maps.py 4096 [--no-restore] [--uint8]
 """
