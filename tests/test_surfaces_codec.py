@@ -1,6 +1,8 @@
 """Geometry images, the glued mesh, Hausdorff PSNR, mesh coding and the mesh commands."""
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -220,3 +222,19 @@ def test_coarsen_bounds_the_pixels_whatever_the_vertex_count():
     assert coarsen(sphere, 1000, most=256).shape == (16, 16, 3)  # 1000 alone would keep 32
     assert coarsen(sphere, 10, most=256).shape == (4, 4, 3)  # the vertex count rules when fewer
     assert coarsen(sphere[:12, :12], 1, most=4).shape == (6, 6, 3)  # no odd side
+
+
+def test_decode_mesh_in_a_thread_leaves_the_heap_sound():
+    # pymeshlab after numba code in one non-main thread corrupted the heap, and glibc aborted
+    # the process at exit (bandelets.surfaces.meshlab): decode in a thread, in a process of its own.
+    code = (
+        "import threading, trimesh\n"
+        "from bandelets.surfaces.codec import encode_mesh, decode_mesh\n"
+        "data = encode_mesh(trimesh.creation.icosphere(subdivisions=2), bits_per_vertex=16)\n"
+        "out = []\n"
+        "thread = threading.Thread(target=lambda: out.append(decode_mesh(data)))\n"
+        "thread.start(); thread.join()\n"
+        "print(len(out[0].vertices))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert (done.returncode, done.stdout) == (0, "162\n"), done.stderr[-500:]

@@ -11,7 +11,7 @@ import bandelets
 from bandelets import cli, tiling
 from bandelets.bitstream import FormatError, unpack
 from bandelets.encoder import encode_with_stats
-from bandelets.memory import check_encodable
+from bandelets.memory import check_encodable, encoder_memory, tile_side
 from bandelets.metrics import angular_error, psnr
 from bandelets.options import EncodeOptions
 from bandelets.samples import crease_normal_map
@@ -128,3 +128,15 @@ def test_cli_encodes_decodes_and_describes_a_tiled_file(tmp_path, normals, tiled
     assert info["bytes"] == (tmp_path / "n.bdl").stat().st_size
     assert cli.main(["decode", str(tmp_path / "n.bdl"), str(tmp_path / "d.npy")]) == 0
     assert np.load(tmp_path / "d.npy").shape == normals.shape
+
+
+def test_by_default_only_what_does_not_fit_in_one_piece_is_tiled():
+    assert tile_side(2048, 2048, 3) == 0  # one piece fits the default limit: no seams
+    assert tile_side(4096, 4096, 3) == tiling.TILE
+    assert tile_side(2048, 2048, 3, tile=300) == 300
+    y, x = np.mgrid[0:2000, 0:40] / 50
+    image = np.tanh(8 * (x - 0.6 * y - 0.3))
+    assert not tiling.is_tiled(bandelets.encode(image, threshold=0.01))
+    tight = encoder_memory(2000, 40, 1) - 1  # one piece no longer fits: four tiles of TILE rows
+    data = bandelets.encode(image, threshold=0.01, max_memory=tight)
+    assert tiling.is_tiled(data) and len(tiling.read(data)[0].boxes) == 4

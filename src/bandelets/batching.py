@@ -30,7 +30,6 @@ import logging
 import os
 import time
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,12 +43,11 @@ from .bitstream import FORMAT_VERSION, KINDS
 from .decoder import decode
 from .encoder import encode
 from .files import SUFFIXES, image_shape, read_array, write_atomic
-from .memory import decoder_memory, encoder_memory
+from .memory import decoder_memory, encoder_memory, tile_side
 from .metrics import angular_error, bits_per_pixel, psnr
 from .rd import MESH_SUFFIXES
 from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
 from .surfaces.metrics import hausdorff_psnr
-from .tiling import TILE
 
 __all__ = [
     "COLUMNS",
@@ -94,7 +92,6 @@ _WORKER_BASE = 512 * 2**20
 # A mesh: its parameterization and Hausdorff sampling hold a few hundred bytes per byte of the
 # input file at most (a rough bound: 200 B/B); the geometry image is at most 1024 x 1024 x 3.
 _MESH_PER_BYTE = 200
-_MESHLAB = ThreadPoolExecutor(max_workers=1, thread_name_prefix="pymeshlab")
 
 
 @dataclass(frozen=True)
@@ -204,15 +201,13 @@ def _compress_image(job: Job) -> dict:
 
 
 def _compress_mesh(job: Job) -> dict:
+    # pymeshlab's calls run in a thread of their own (bandelets.surfaces.meshlab), not the
+    # worker's, where numba's code runs.
     mesh = load_mesh(job.input)
     data = encode_mesh(mesh, **job.target)
     _write(job.output, data)
     row = {"bytes": len(data), "bpv": 8.0 * len(data) / len(mesh.vertices)}
-    # pymeshlab in a thread that also loaded numba code corrupts the heap (glibc aborts the
-    # process at exit: numba 0.68, pymeshlab 2025.7), and a Dask worker runs every task in one
-    # such thread: the measure gets a thread of its own.
-    measured = _MESHLAB.submit(hausdorff_psnr, mesh, decode_mesh(data)).result()
-    return row | {"psnr": measured}
+    return row | {"psnr": hausdorff_psnr(mesh, decode_mesh(data))}
 
 
 def _write(path: str, data: bytes) -> None:
@@ -298,7 +293,8 @@ def memory_estimate(path: Path, kind: str, target: dict) -> int:
         return 0
     h, w, c = shape
     # The encoder's peak, the decoder's for the measurement, and the source and decoded arrays.
-    return encoder_memory(h, w, c, TILE) + decoder_memory(h, w, c, 1, True, True, TILE) + 4 * 8 * h * w * c
+    tile = tile_side(h, w, c)
+    return encoder_memory(h, w, c, tile) + decoder_memory(h, w, c, 1, True, True, tile) + 4 * 8 * h * w * c
 
 
 def _image_shape(path: Path) -> tuple[int, int, int] | None:

@@ -118,10 +118,11 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--tile",
         type=int,
-        default=512,
+        default=0,
         metavar="N",
         help="code an image with a side above N pixels in independent tiles of about N x N, two at a time "
-        "(default 512: bounded memory at any size, a region decodes alone)",
+        "(bounded memory at any size, a region decodes alone; default: tiles of 512 only for an image "
+        "that would not fit --max-memory in one piece)",
     )
     _common(p)
 

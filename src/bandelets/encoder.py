@@ -169,7 +169,7 @@ def encode(
     max_memory: int = MAX_MEMORY,
     xy: bool = False,
     max_work: int = MAX_WORK,
-    tile: int = tiling.TILE,
+    tile: int = 0,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -236,7 +236,9 @@ def encode(
         An image with a side above ``tile`` pixels is coded in tiles of about ``tile`` x ``tile``
         (:mod:`bandelets.tiling`: independent tiles at one threshold, two at a time; memory
         bounded whatever the size, a region can be decoded alone), at least
-        :data:`~bandelets.tiling.MIN_TILE`.
+        :data:`~bandelets.tiling.MIN_TILE`. The default, 0, codes in one piece what fits
+        ``max_memory`` and in tiles of :data:`~bandelets.tiling.TILE` what does not (tile borders
+        can show at low rates: :func:`bandelets.memory.tile_side`).
 
     Returns
     -------

@@ -30,6 +30,7 @@ __all__ = [
     "decoder_memory",
     "encoder_memory",
     "restoration_work",
+    "tile_side",
 ]
 
 # Working set per padded pixel and per padded sample, measured with tracemalloc (peak of the
@@ -93,14 +94,30 @@ def encoder_memory(height: int, width: int, channels: int, tile: int = 0) -> int
     return _ENCODE_FIXED + in_flight + height * width * _TILED_ENCODE_PER_PIXEL
 
 
+def tile_side(height: int, width: int, channels: int, tile: int = 0, max_memory: int = MAX_MEMORY) -> int:
+    """The tile side :func:`bandelets.encode` codes an image with (0: one piece): ``tile`` when
+    given, else (``tile=0``, the default) one piece while that needs no more than ``max_memory``
+    (:func:`encoder_memory`), and tiles of :data:`~bandelets.tiling.TILE` above.
+
+    Why not always tiles: nothing crosses a tile border, and at low rates the borders of smooth
+    maps show (``python benchmarks/tiling_cost.py --size 1024 --rates 0.25,1``: bumps -3.17 dB
+    at 0.25 bpp in tiles of 512): tiles are for the sizes that would not fit otherwise.
+    """
+    if tile:
+        return tile
+    return 0 if encoder_memory(height, width, channels) <= max_memory else TILE
+
+
 def check_encodable(
-    height: int, width: int, channels: int, max_memory: int = MAX_MEMORY, tile: int = TILE
+    height: int, width: int, channels: int, max_memory: int = MAX_MEMORY, tile: int | None = None
 ) -> None:
     """Raise ``ValueError`` for an image the encoder refuses before any work on it: one whose
-    encoding in tiles of ``tile`` (0: in one piece) needs more than ``max_memory`` bytes
-    (:func:`encoder_memory`), or whose file the
+    encoding in tiles of ``tile`` (0: in one piece; None: the side :func:`tile_side` chooses by
+    default) needs more than ``max_memory`` bytes (:func:`encoder_memory`), or whose file the
     default decoder would refuse (a side above :data:`~bandelets.bitstream.MAX_SIDE`, more samples
     than :data:`~bandelets.bitstream.MAX_SAMPLES`)."""
+    if tile is None:
+        tile = tile_side(height, width, channels, 0, max_memory)
     need = encoder_memory(height, width, channels, tile)
     if need > max_memory:
         raise ValueError(

@@ -32,7 +32,7 @@ from .bitstream import (
     Wavelet,
 )
 from .memory import check_encodable
-from .tiling import MIN_TILE, TILE
+from .tiling import MIN_TILE
 from .wavelets import check_extension
 
 __all__ = [
@@ -84,11 +84,13 @@ class EncodeOptions:
     xy: bool = False
     max_work: int = MAX_WORK
     mesh_vertices: int = 0
-    tile: int = TILE
+    tile: int = 0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.tile, (int, np.integer)) and self.tile >= MIN_TILE):
-            raise ValueError(f"tile must be an integer of at least {MIN_TILE}, got {self.tile!r}")
+        if not (isinstance(self.tile, (int, np.integer)) and (self.tile == 0 or self.tile >= MIN_TILE)):
+            raise ValueError(
+                f"tile must be 0 (automatic) or an integer of at least {MIN_TILE}, got {self.tile!r}"
+            )
         if self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.xy and self.kind != "normal-map":

@@ -292,7 +292,7 @@ class _Tile:
 
 def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=None, measured=False):
     """:func:`bandelets.encoder.encode_with_stats` for an image of more than one tile
-    (``options.tile``): every tile coded at one threshold, found by one search on the whole file's
+    (:func:`side`): every tile coded at one threshold, found by one search on the whole file's
     size or quality, at most :data:`WORKERS` tiles in flight.
 
     The returned :class:`~bandelets.encoder.Encoded` holds the PSNR of the whole decoded image (and
@@ -306,12 +306,12 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
     from .progress import Progress
 
     source = np.asarray(array)
-    grid = Grid(source.shape[0], source.shape[1], options.tile)
+    grid = Grid(source.shape[0], source.shape[1], side(source, options))
     check_encodable(
-        grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, options.tile
+        grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, grid.tile
     )
     kind = options.kind
-    tile_options = replace(options, progress=False)
+    tile_options = replace(options, progress=False, tile=grid.tile)
 
     def coded(box, t: float, restore: bool, keep: bool) -> _Tile:
         tile = source[box]
@@ -481,9 +481,19 @@ def _coefficient_sample(source: np.ndarray, grid: Grid, options) -> tuple[np.nda
     return np.concatenate(samples), count, 2.0 * largest * max(1.0, weight), top
 
 
-def tiled(array, options) -> bool:
-    """Whether :func:`bandelets.encode` codes ``array`` in tiles (see ``tile`` there): a side
-    above ``options.tile``, and the symmetric extension (a spherical geometry image folds its
-    borders onto each other: one tile)."""
+def side(array, options) -> int:
+    """The tile side :func:`bandelets.encode` codes ``array`` with (0: one piece; see ``tile``
+    there and :func:`bandelets.memory.tile_side`): one piece for the spherical extension (a
+    spherical geometry image folds its borders onto each other)."""
+    from .memory import tile_side
+
     shape = np.shape(array)
-    return len(shape) in (2, 3) and options.extension == "symmetric" and Grid(*shape[:2], options.tile).tiled
+    if len(shape) not in (2, 3) or options.extension != "symmetric":
+        return 0
+    return tile_side(*shape[:2], shape[2] if len(shape) == 3 else 1, options.tile, options.max_memory)
+
+
+def tiled(array, options) -> bool:
+    """Whether :func:`bandelets.encode` codes ``array`` in more than one tile (:func:`side`)."""
+    tile = side(array, options)
+    return bool(tile) and Grid(*np.shape(array)[:2], tile).tiled

@@ -10,6 +10,7 @@ One module per stage, each plain functions on numpy arrays and ``trimesh.Trimesh
 :mod:`.metrics`           RMS symmetric Hausdorff distance (pymeshlab) and its PSNR
 :mod:`.codec`             mesh -> .bdl -> mesh
 :mod:`.draco`             Google's Draco (DracoPy), the mesh anchor of ``bandelets rd``
+:mod:`.meshlab`           every pymeshlab call in one thread of its own (safe in any thread)
 ========================  ===============================================================
 
 This package imports trimesh, scipy and pymeshlab; the rest of ``bandelets`` never imports

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import octahedral
+from .meshlab import confined
 
 __all__ = ["coarsen", "decimate", "locate", "mesh_from_image", "sample", "triangulation"]
 
@@ -216,6 +217,7 @@ def coarsen(image: np.ndarray, vertices: int, most: int | None = None) -> np.nda
     return image
 
 
+@confined
 def decimate(mesh, vertices: int):
     """A closed genus-0 mesh simplified to ``vertices`` vertices by quadric edge collapse.
 

@@ -18,12 +18,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .meshlab import confined
+
 __all__ = ["decimate", "levels", "place"]
 
 _RATIO = 4  # vertices of a level over those of the next coarser one
 _CANDIDATES = 12  # nearest coarse vertices whose triangles are tried for a closest point
 
 
+@confined
 def decimate(vertices: np.ndarray, faces: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """Quadric-error decimation to about ``count`` vertices that keeps vertices in place.
 

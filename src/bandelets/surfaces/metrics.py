@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .meshlab import confined
+
 __all__ = ["SAMPLES", "hausdorff_psnr", "rms_hausdorff"]
 
 SAMPLES = 200_000  # face samples on each mesh, besides its vertices
@@ -30,6 +32,7 @@ def _one_sided_rms(meshset, sampled: int, target: int, samples: int, cutoff: flo
     return float(result["RMS"])
 
 
+@confined
 def rms_hausdorff(a, b, samples: int = SAMPLES) -> float:
     """RMS symmetric Hausdorff distance between two triangle meshes, in their unit.
 
