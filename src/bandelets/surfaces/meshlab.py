@@ -28,11 +28,7 @@ _THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix=_PREFIX)
 Result = TypeVar("Result")
 
 
-def confined(function):
-    return function
-
-
-def _x(function: Callable[..., Result]) -> Callable[..., Result]:
+def confined(function: Callable[..., Result]) -> Callable[..., Result]:
     """``function`` run in the pymeshlab thread (directly when called from it: no deadlock)."""
 
     @functools.wraps(function)
