@@ -176,7 +176,7 @@ def _best_of_square(
     n_hints,
 ) -> tuple[float, int]:
     """Best Lagrangian and direction (-1: NULL) of one square, its channels raveled in
-    ``squares`` (C, n); ``samples``, ``tmp``, ``signal``: scratch of n. See :func:`_search`."""
+    ``squares`` (C, n); ``samples``, ``tmp``, ``signal``: scratch of n. See :func:`best_directions`."""
     channels, n = squares.shape
     n_dirs = orders.shape[0]
     order_1d = mats.shape[1] // 2
@@ -248,61 +248,147 @@ def _best_of_square(
 #: (allocations per square cost as much as the search of a 4 x 4 square).
 _RUNS = 64
 
+#: Calls with less work than this (squares x samples x directions scanned) run on one thread:
+#: on the shared 2-core machine a parallel launch cost about 7 ms of waiting for the other
+#: core, more than the whole of most calls (0.06 to 5 ms at 512 x 512).
+PARALLEL_WORK = 2**22
+
+
+@njit(cache=True, nogil=True)
+def _search_run(
+    run,
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
+    """The squares of run ``run`` of ``runs`` (runs of ``visit``), into ``cost`` and ``best``."""
+    channels = subbands.shape[0]
+    cols = cost.shape[1]
+    total = cost.size
+    n = width * width
+    squares = np.empty((channels, n))
+    samples = np.empty(n)
+    tmp = np.empty(n)
+    signal = np.empty(n)
+    for s in range(run * total // runs, (run + 1) * total // runs):
+        r = visit[s] // cols
+        c = visit[s] % cols
+        for k in range(channels):
+            for i in range(width):
+                for j in range(width):
+                    squares[k, i * width + j] = subbands[k, r * width + i, c * width + j]
+        cost[r, c], best[r, c] = _best_of_square(
+            squares,
+            samples,
+            tmp,
+            signal,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted[r, c],
+            allow_directions,
+            stride,
+            hints[r, c],
+            hints.shape[2],
+        )
+
 
 @njit(cache=True, parallel=True)
-def _search(
-    subbands: np.ndarray,
-    width: int,
-    orders: np.ndarray,
-    mats: np.ndarray,
-    threshold: float,
-    model: np.ndarray,
-    null_bits: float,
-    direction_bits: float,
-    predicted: np.ndarray,
-    allow_directions: bool,
-    stride: int,
-    hints: np.ndarray,
-    visit: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    channels = subbands.shape[0]
-    rows = subbands.shape[1] // width
-    cols = subbands.shape[2] // width
-    n = width * width
-    cost = np.empty((rows, cols))
-    best = np.full((rows, cols), -1, np.int64)
-    total = rows * cols
-    runs = min(_RUNS, total)
+def _search_parallel(
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
     for run in prange(runs):
-        squares = np.empty((channels, n))
-        samples = np.empty(n)
-        tmp = np.empty(n)
-        signal = np.empty(n)
-        for s in range(run * total // runs, (run + 1) * total // runs):
-            r = visit[s] // cols
-            c = visit[s] % cols
-            for k in range(channels):
-                for i in range(width):
-                    for j in range(width):
-                        squares[k, i * width + j] = subbands[k, r * width + i, c * width + j]
-            cost[r, c], best[r, c] = _best_of_square(
-                squares,
-                samples,
-                tmp,
-                signal,
-                orders,
-                mats,
-                threshold,
-                model,
-                null_bits,
-                direction_bits,
-                predicted[r, c],
-                allow_directions,
-                stride,
-                hints[r, c],
-                hints.shape[2],
-            )
-    return cost, best
+        _search_run(
+            run,
+            runs,
+            cost,
+            best,
+            subbands,
+            width,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted,
+            allow_directions,
+            stride,
+            hints,
+            visit,
+        )
+
+
+@njit(cache=True, nogil=True)
+def _search_serial(
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
+    for run in range(runs):
+        _search_run(
+            run,
+            runs,
+            cost,
+            best,
+            subbands,
+            width,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted,
+            allow_directions,
+            stride,
+            hints,
+            visit,
+        )
 
 
 def best_directions(
@@ -356,10 +442,20 @@ def best_directions(
         predicted = np.full(shape, -1, np.int64)
     if hints is None:
         hints = np.full(shape + (0,), -1, np.int64)
-    return _search(
+    orders = directions(width)[1]
+    stride = REFINE_STRIDE if orders.shape[0] > REFINE_ABOVE else 1
+    cost = np.empty(shape)
+    best = np.full(shape, -1, np.int64)
+    total = shape[0] * shape[1]
+    work = total * width * width * (-(-orders.shape[0] // stride) if allow_directions else 1)
+    search = _search_parallel if work >= PARALLEL_WORK else _search_serial
+    search(
+        min(_RUNS, total),
+        cost,
+        best,
         np.ascontiguousarray(subbands, dtype=np.float64),
         width,
-        directions(width)[1],
+        orders,
         alpert_matrices(width * width, ORDER[transform_1d]),
         float(threshold),
         model,
@@ -367,10 +463,11 @@ def best_directions(
         direction_bits,
         np.ascontiguousarray(predicted, dtype=np.int64),
         allow_directions,
-        REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
+        stride,
         np.ascontiguousarray(hints, dtype=np.int64),
-        _visit_order(shape[0] * shape[1]),
+        _visit_order(total),
     )
+    return cost, best
 
 
 @cache
