@@ -252,7 +252,7 @@ _RUNS = 64
 #: On the shared 2-core machine under load a parallel launch waited about 7 ms for the other
 #: core, more than the whole of most calls (0.06 to 5 ms at 512 x 512: 512 x 512 x 3 at 1 bpp
 #: took 1.36 s with every call parallel, 1.01 s with none); lightly loaded, every call parallel
-#: took 0.86 to 0.90 s, this threshold (9 of the 33 calls per encoding) 0.87 to 0.93 s.
+#: took 0.86 to 0.90 s, this threshold (18 of the 33 calls of each try of rate control) 0.87 to 0.93 s.
 PARALLEL_WORK = 2**20
 
 
