@@ -37,7 +37,7 @@ from functools import cache
 import numpy as np
 from numba import njit, prange
 
-from .bandeletize import ORDER, alpert_matrices, multiwavelet_inplace
+from .bandeletize import ORDER, alpert_matrices, multiwavelet
 from .bitstream import DEFAULT_TRANSFORM_1D
 from .geometry import directions
 from .quadtree import MAX_WIDTH
@@ -157,98 +157,240 @@ def _offset_bits(offset: int) -> float:
     return 3.0 + 2.0 * math.floor(math.log2(offset))
 
 
-@njit(cache=True, parallel=True)
-def _search(
-    subbands: np.ndarray,
-    width: int,
-    orders: np.ndarray,
-    mats: np.ndarray,
-    threshold: float,
-    model: np.ndarray,
-    null_bits: float,
-    direction_bits: float,
-    predicted: np.ndarray,
-    allow_directions: bool,
-    stride: int,
-    hints: np.ndarray,
-    visit: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    channels = subbands.shape[0]
+@njit(cache=True, nogil=True)
+def _best_of_square(
+    squares,
+    samples,
+    tmp,
+    signal,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    guess,
+    allow_directions,
+    stride,
+    hints,
+    n_hints,
+) -> tuple[float, int]:
+    """Best Lagrangian and direction (-1: NULL) of one square, its channels raveled in
+    ``squares`` (C, n); ``samples``, ``tmp``, ``signal``: scratch of n. See :func:`best_directions`."""
+    channels, n = squares.shape
     n_dirs = orders.shape[0]
     order_1d = mats.shape[1] // 2
-    rows = subbands.shape[1] // width
-    cols = subbands.shape[2] // width
-    n = width * width
     price = LAMBDA * threshold * threshold
-    cost = np.empty((rows, cols))
-    best = np.full((rows, cols), -1, np.int64)
-    for s in prange(rows * cols):
+    best_cost = price * null_bits
+    best = -1
+    for k in range(channels):
+        distortion, bits = coefficient_bits(squares[k], threshold, 0, model)
+        best_cost += distortion + price * bits
+    # A square whose energy is at most T**2 in every channel quantizes to zero in every
+    # basis (no coefficient can exceed T): its directions cannot beat NULL.
+    quiet = True
+    for k in range(channels):
+        energy = 0.0
+        for i in range(n):
+            energy += squares[k, i] * squares[k, i]
+        if energy > threshold * threshold:
+            quiet = False
+    if not allow_directions or quiet:
+        return best_cost, best
+    has_hints = False
+    if stride > 1:
+        for h in range(n_hints):
+            has_hints = has_hints or hints[h] >= 0
+    # A large square none of whose half-size squares found a direction is unlikely to
+    # have one: it is scanned four times more coarsely.
+    scan = 4 * stride if stride > 1 and n_hints > 0 and not has_hints else stride
+    # Progressive refinement: the directions near the hints (the best directions of
+    # the four half-size squares inside) or, without hints, every stride-th
+    # direction; then the neighbours of the best so far and of the predicted one.
+    for step in range(n_hints + 3):
+        if step < n_hints:
+            centre = hints[step]
+            if not has_hints or centre < 0:
+                continue
+            first, last, every = centre - stride + 1, centre + stride - 1, 1
+        elif step == n_hints:
+            if has_hints:
+                continue
+            first, last, every = 0, n_dirs - 1, scan
+        else:
+            centre = best if step == n_hints + 1 else guess
+            if stride == 1 or centre < 0:
+                continue
+            radius = scan if step == n_hints + 1 else stride
+            first, last, every = centre - radius + 1, centre + radius - 1, 1
+        for dd in range(first, last + 1, every):
+            d = dd % n_dirs
+            if guess < 0:
+                candidate = price * direction_bits
+            else:
+                offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
+                candidate = price * (model[7] + _offset_bits(offset))
+            for k in range(channels):
+                for i in range(n):
+                    samples[i] = squares[k, orders[d, i]]
+                multiwavelet(samples, tmp, signal, mats)
+                distortion, bits = coefficient_bits(signal, threshold, order_1d, model)
+                candidate += distortion + price * bits
+                if candidate >= best_cost:
+                    break
+            if candidate < best_cost:
+                best_cost = candidate
+                best = d
+    return best_cost, best
+
+
+#: The squares of one call are searched in this many runs, each with its own scratch arrays
+#: (allocations per square cost as much as the search of a 4 x 4 square).
+_RUNS = 64
+
+#: Calls with less work than this (squares x samples x directions scanned) run on one thread.
+#: On the shared 2-core machine under load a parallel launch waited about 7 ms for the other
+#: core, more than the whole of most calls (0.06 to 5 ms at 512 x 512: 512 x 512 x 3 at 1 bpp
+#: took 1.36 s with every call parallel, 1.01 s with none); lightly loaded, every call parallel
+#: took 0.86 to 0.90 s, this threshold (18 of the 33 calls of each try of rate control) 0.87 to 0.93 s.
+PARALLEL_WORK = 2**20
+
+
+@njit(cache=True, nogil=True)
+def _search_run(
+    run,
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
+    """The squares of run ``run`` of ``runs`` (runs of ``visit``), into ``cost`` and ``best``."""
+    channels = subbands.shape[0]
+    cols = cost.shape[1]
+    total = cost.size
+    n = width * width
+    squares = np.empty((channels, n))
+    samples = np.empty(n)
+    tmp = np.empty(n)
+    signal = np.empty(n)
+    for s in range(run * total // runs, (run + 1) * total // runs):
         r = visit[s] // cols
         c = visit[s] % cols
-        squares = np.empty((channels, n))
         for k in range(channels):
-            squares[k] = subbands[k, r * width : (r + 1) * width, c * width : (c + 1) * width].ravel()
-        best_cost = price * null_bits
-        for k in range(channels):
-            distortion, bits = coefficient_bits(squares[k], threshold, 0, model)
-            best_cost += distortion + price * bits
-        # A square whose energy is at most T**2 in every channel quantizes to zero in every
-        # basis (no coefficient can exceed T): its directions cannot beat NULL.
-        quiet = True
-        for k in range(channels):
-            energy = 0.0
-            for i in range(n):
-                energy += squares[k, i] * squares[k, i]
-            if energy > threshold * threshold:
-                quiet = False
-        n_hints = hints.shape[2]
-        has_hints = stride > 1 and n_hints > 0 and np.max(hints[r, c]) >= 0
-        # A large square none of whose half-size squares found a direction is unlikely to
-        # have one: it is scanned four times more coarsely.
-        scan = 4 * stride if stride > 1 and n_hints > 0 and not has_hints else stride
-        if allow_directions and not quiet:
-            signal = np.empty(n)
-            tmp = np.empty(n)
-            guess = predicted[r, c]
-            # Progressive refinement: the directions near the hints (the best directions of
-            # the four half-size squares inside) or, without hints, every stride-th
-            # direction; then the neighbours of the best so far and of the predicted one.
-            for step in range(n_hints + 3):
-                if step < n_hints:
-                    centre = hints[r, c, step]
-                    if not has_hints or centre < 0:
-                        continue
-                    first, last, every = centre - stride + 1, centre + stride - 1, 1
-                elif step == n_hints:
-                    if has_hints:
-                        continue
-                    first, last, every = 0, n_dirs - 1, scan
-                else:
-                    centre = best[r, c] if step == n_hints + 1 else guess
-                    if stride == 1 or centre < 0:
-                        continue
-                    radius = scan if step == n_hints + 1 else stride
-                    first, last, every = centre - radius + 1, centre + radius - 1, 1
-                for dd in range(first, last + 1, every):
-                    d = dd % n_dirs
-                    if guess < 0:
-                        candidate = price * direction_bits
-                    else:
-                        offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
-                        candidate = price * (model[7] + _offset_bits(offset))
-                    for k in range(channels):
-                        for i in range(n):
-                            signal[i] = squares[k, orders[d, i]]
-                        multiwavelet_inplace(signal, tmp, mats)
-                        distortion, bits = coefficient_bits(signal, threshold, order_1d, model)
-                        candidate += distortion + price * bits
-                        if candidate >= best_cost:
-                            break
-                    if candidate < best_cost:
-                        best_cost = candidate
-                        best[r, c] = d
-        cost[r, c] = best_cost
-    return cost, best
+            for i in range(width):
+                for j in range(width):
+                    squares[k, i * width + j] = subbands[k, r * width + i, c * width + j]
+        cost[r, c], best[r, c] = _best_of_square(
+            squares,
+            samples,
+            tmp,
+            signal,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted[r, c],
+            allow_directions,
+            stride,
+            hints[r, c],
+            hints.shape[2],
+        )
+
+
+@njit(cache=True, parallel=True)
+def _search_parallel(
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
+    for run in prange(runs):
+        _search_run(
+            run,
+            runs,
+            cost,
+            best,
+            subbands,
+            width,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted,
+            allow_directions,
+            stride,
+            hints,
+            visit,
+        )
+
+
+@njit(cache=True, nogil=True)
+def _search_serial(
+    runs,
+    cost,
+    best,
+    subbands,
+    width,
+    orders,
+    mats,
+    threshold,
+    model,
+    null_bits,
+    direction_bits,
+    predicted,
+    allow_directions,
+    stride,
+    hints,
+    visit,
+) -> None:
+    for run in range(runs):
+        _search_run(
+            run,
+            runs,
+            cost,
+            best,
+            subbands,
+            width,
+            orders,
+            mats,
+            threshold,
+            model,
+            null_bits,
+            direction_bits,
+            predicted,
+            allow_directions,
+            stride,
+            hints,
+            visit,
+        )
 
 
 def best_directions(
@@ -302,10 +444,20 @@ def best_directions(
         predicted = np.full(shape, -1, np.int64)
     if hints is None:
         hints = np.full(shape + (0,), -1, np.int64)
-    return _search(
+    orders = directions(width)[1]
+    stride = REFINE_STRIDE if orders.shape[0] > REFINE_ABOVE else 1
+    cost = np.empty(shape)
+    best = np.full(shape, -1, np.int64)
+    total = shape[0] * shape[1]
+    work = total * width * width * (-(-orders.shape[0] // stride) if allow_directions else 1)
+    search = _search_parallel if work >= PARALLEL_WORK else _search_serial
+    search(
+        min(_RUNS, total),
+        cost,
+        best,
         np.ascontiguousarray(subbands, dtype=np.float64),
         width,
-        directions(width)[1],
+        orders,
         alpert_matrices(width * width, ORDER[transform_1d]),
         float(threshold),
         model,
@@ -313,10 +465,11 @@ def best_directions(
         direction_bits,
         np.ascontiguousarray(predicted, dtype=np.int64),
         allow_directions,
-        REFINE_STRIDE if directions(width)[1].shape[0] > REFINE_ABOVE else 1,
+        stride,
         np.ascontiguousarray(hints, dtype=np.int64),
-        _visit_order(shape[0] * shape[1]),
+        _visit_order(total),
     )
+    return cost, best
 
 
 @cache
