@@ -402,10 +402,17 @@ def test_xy_normal_maps_decode_to_their_layout(crease_map, layout):
         np.testing.assert_allclose(decoded, metrics.with_z(decoded[..., :2]), atol=1e-12)
 
 
-def test_progress_line_names_every_stage(crease_map, capsys):
+def test_progress_line_names_every_stage(crease_map, capsys, monkeypatch):
+    import functools
+
+    from tqdm import tqdm
+
+    from bandelets import progress
+
+    # tqdm redraws at most every 0.1 s: here at every step, so what shows does not hang on timing.
+    monkeypatch.setattr(progress, "tqdm", functools.partial(tqdm, mininterval=0, miniters=1))
     bandelets.encode(crease_map, psnr=40, kind="normal-map", progress=True)
     err = capsys.readouterr().err
-    # tqdm redraws at most every 0.1 s: not every step shows.
     assert "rate control: " in err and "restoration search: " in err and "T=" in err
     assert "rate control: 3" in err  # counted across the restoration searches
     bandelets.encode(crease_map, psnr=40, kind="normal-map")
