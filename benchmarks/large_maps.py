@@ -7,10 +7,11 @@ sampled), encoded at 1 bpp (rate control and the restoration search included, un
 and process CPU time (all threads) of each, and the peak resident memory of the encode and of
 the decode (Linux: VmHWM, reset once the map, or the file, is made; imports and the map
 itself included; the decode's in a new process). ``--uint8`` holds the map as 8-bit samples,
-as read from a PNG (its float64 array alone is 1.5 GiB at 8192 x 8192). Maps above 512 x 512
-are coded in tiles (``bandelets.tiling``).
+as read from a PNG (its float64 array alone is 1.5 GiB at 8192 x 8192). Maps are coded as the
+library's default does: in one piece when that fits the memory limit, in tiles of 512 above
+(:func:`bandelets.memory.tile_side`); ``--tile N`` for tiles at any size.
 
-    python benchmarks/large_maps.py 4096 [--no-restore] [--uint8]
+    python benchmarks/large_maps.py 4096 [--no-restore] [--uint8] [--tile 512]
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ def main() -> None:
     parser.add_argument("size", type=int)
     parser.add_argument("--no-restore", action="store_true")
     parser.add_argument("--uint8", action="store_true")
+    parser.add_argument("--tile", type=int, default=0, help="tile side (default 0: the library's choice)")
     args = parser.parse_args()
     bandelets.decode(bandelets.encode(crease_normal_map(64), threshold=0.05, kind="normal-map"))
     normals = crease_normal_map(args.size, supersampling=1)
@@ -87,7 +89,9 @@ def main() -> None:
     u16 = u12 = None  # freed before the measured calls
     _reset_peak()
     data, enc_s, enc_cpu = _timed(
-        lambda: bandelets.encode(source, bpp=1, kind="normal-map", restore=not args.no_restore)
+        lambda: bandelets.encode(
+            source, bpp=1, kind="normal-map", restore=not args.no_restore, tile=args.tile
+        )
     )
     enc_peak = _peak_mib()
     decoded, dec_s, dec_cpu = _timed(lambda: bandelets.decode(data))

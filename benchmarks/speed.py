@@ -11,7 +11,9 @@ kernel (empty cache) and a small encode. Then the time per pixel against the 512
 with ``--memory``, the peak resident memory of an encode and of a decode of each size (each in
 a child process whose high-water mark is reset once the map or file is made, Linux only; from
 8192 x 8192 on, the map is held as 8-bit samples, as read from a PNG: its float64 array alone
-would take 1.5 GiB). Maps above 512 x 512 are coded in tiles (:mod:`bandelets.tiling`).
+would take 1.5 GiB). Maps are coded as the library's default does (in one piece when that fits
+the memory limit, in tiles of 512 above: :func:`bandelets.memory.tile_side`), or in tiles of
+``--tile`` at any size.
 
     python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start] [--tile 512]
 """
@@ -103,7 +105,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="256,512,1024,2048")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--tile", type=int, default=512, help="tile side (bandelets.tiling; default 512)")
+    parser.add_argument(
+        "--tile", type=int, default=0, help="tile side (bandelets.tiling; default 0: the library's choice)"
+    )
     parser.add_argument("--memory", action="store_true", help="peak RSS of an encode and a decode per size")
     parser.add_argument(
         "--no-cold-start", action="store_true", help="skip the cold start (empty numba cache)"
