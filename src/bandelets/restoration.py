@@ -102,11 +102,13 @@ PROJECT_EVERY = 10
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
 #: Pixels from which :func:`penalty_gradient` computes its two halves in two threads: at 128^2 x 3
-#: already 0.29 ms against 0.36 in one, at 512^2 2.9 ms against 5.0 (idle 2-core machine).
+#: already 0.29 ms against 0.36 in one, at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
 _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
+if hasattr(os, "register_at_fork"):  # a forked child has the pool but not its thread: a new one
+    os.register_at_fork(after_in_child=lambda: globals().update(_POOL=None, _POOL_LOCK=threading.Lock()))
 
 
 def penalty_gradient(
