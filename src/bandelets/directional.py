@@ -50,7 +50,7 @@ _N_STATE = 3
 N_CONTEXTS = 2 * MAX_LIFTING * _N_STATE + 16 * 2 * MAX_LIFTING
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _row(n, pos):
     """Rows ``i, i + 1`` and weight ``f`` of the linear interpolation at row ``pos`` of ``n``
     rows, mirrored at the border."""
@@ -64,7 +64,7 @@ def _row(n, pos):
     return i, i + 1, pos - i
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _steps(x, codes, offsets, block, weights, predict_first):
     """Lifting steps along the rows of ``x``, in place, even columns ``s`` and odd ``d`` interleaved.
 

@@ -135,7 +135,7 @@ class Coder:
             raise CorruptStream("coded stream is truncated or corrupt")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _shift_low(st, buf):
     low = st[_LOW]
     if low < 0xFF000000 or low > 0xFFFFFFFF:
@@ -153,13 +153,13 @@ def _shift_low(st, buf):
     st[_LOW] = (low & 0x00FFFFFF) << 8
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _encoder_flush(st, buf):
     for _ in range(5):
         _shift_low(st, buf)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _next_byte(st, buf):
     pos = st[_POS]
     st[_POS] = pos + 1
@@ -169,7 +169,7 @@ def _next_byte(st, buf):
     return np.int64(0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _decoder_start(st, buf):
     st[_RANGE] = 0xFFFFFFFF
     code = np.int64(0)
@@ -178,7 +178,7 @@ def _decoder_start(st, buf):
     st[_LOW] = code
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _code_at(st, buf, p, bit, decoding):
     """Code one binary decision whose 1 has probability ``p`` (of ``_PROB_ONE``); returns the bit."""
     bound = (st[_RANGE] >> _PROB_BITS) * p
@@ -202,7 +202,7 @@ def _code_at(st, buf, p, bit, decoding):
     return bit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _adapt(probs, counts, ctx, bit):
     """Move the probability of context ``ctx`` towards ``bit``."""
     # Adaptation rate about 1/(n + 2) for the n-th use of a context (a counting
@@ -219,7 +219,7 @@ def _adapt(probs, counts, ctx, bit):
     probs[ctx] = min(max(p, _PROB_MIN), _PROB_ONE - _PROB_MIN)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
     """Code one binary decision in context ``ctx``; returns the bit (decoded or given)."""
     bit = _code_at(st, buf, probs[ctx], bit, decoding)
@@ -228,7 +228,7 @@ def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
     return bit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _code_backed(st, buf, probs, counts, ctx, coarse, bit, decoding):
     """Code one binary decision in context ``ctx`` backed by the ``coarse`` context that it
     refines: while ``ctx`` has been used ``n`` times, its probability is weighted ``n`` against
@@ -247,12 +247,12 @@ def _code_backed(st, buf, probs, counts, ctx, coarse, bit, decoding):
 _EQUIPROBABLE = np.array([_PROB_ONE // 2], np.int64)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _code_raw_bit(st, buf, bit, decoding, half):
     return _code_bit(st, buf, half, None, 0, bit, decoding)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _flags(st, buf, probs, counts, bits, ctxs, decoding):
     for i in range(bits.shape[0]):
         bits[i] = _code_bit(st, buf, probs, counts, ctxs[i], bits[i], decoding)
@@ -281,7 +281,7 @@ def code_flags(coder: Coder, bits: np.ndarray, ctxs: np.ndarray) -> np.ndarray:
     return bits
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _symbols(st, buf, probs, counts, symbols, bases, n_bits, decoding):
     for i in range(symbols.shape[0]):
         # Binary tree over n_bits bits, most significant first: node contexts 1 .. 2**n_bits - 1.
@@ -315,7 +315,7 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
     return symbols
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _elias_gamma(st, buf, probs, counts, half, r, base, decoding, coarse=-1):
     """Code ``r >= 1``: adaptive unary prefix ``floor(log2 r)`` (contexts ``base + i``), then
     its low bits equiprobable. Returns ``r`` (decoded when decoding), -1 if corrupt."""
@@ -341,7 +341,7 @@ def _elias_gamma(st, buf, probs, counts, half, r, base, decoding, coarse=-1):
     return value
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _positive(st, buf, probs, counts, half, values, bases, decoding):
     for i in range(values.shape[0]):
         values[i] = _elias_gamma(st, buf, probs, counts, half, values[i], bases[i], decoding)
@@ -374,7 +374,7 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
     return values
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, classes, neighbours, decoding):
     mags = np.zeros(5, np.int64)
     for i in range(order.shape[0]):
@@ -451,7 +451,7 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
     return 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _median_prediction(known, neighbours):
     left = known[neighbours[0]] if neighbours[0] >= 0 else 0
     up = known[neighbours[1]] if neighbours[1] >= 0 else left

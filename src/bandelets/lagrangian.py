@@ -60,7 +60,7 @@ LAMBDA = 3.0 / 28.0
 RATE_MODEL = np.array([0.26, 3.73, 0.89, 0.14, 5.9, 0.8, 0.3, 1.0])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _libm_table(size: int, log_gamma: bool) -> np.ndarray:
     """``lgamma(i)`` or ``log2(i)`` (0 at 0) for ``i < size``, by the compiled code's own libm:
     looking them up gives the very values calling them would (CPython's lgamma differs)."""
@@ -75,19 +75,19 @@ _LGAMMA = _libm_table(MAX_WIDTH * MAX_WIDTH + 2, True)
 _LOG2 = _libm_table(1024, False)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _lgamma(n: int) -> float:
     return _LGAMMA[n] if n < _LGAMMA.shape[0] else math.lgamma(n)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _log2_binomial(n: int, k: int) -> float:
     if k == 0 or k == n:
         return 0.0
     return (_lgamma(n + 1) - _lgamma(k + 1) - _lgamma(n - k + 1)) / math.log(2.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def square_features(values: np.ndarray, threshold: float, k: int) -> tuple[float, float, float, float]:
     """What the rate model of one square depends on, and its quantization error.
 
@@ -128,7 +128,7 @@ def square_features(values: np.ndarray, threshold: float, k: int) -> tuple[float
     return significance, count, magnitude, distortion
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def coefficient_bits(values: np.ndarray, threshold: float, k: int, model: np.ndarray) -> tuple[float, float]:
     """Quantization error and modelled bits of the coefficients of one square.
 
@@ -149,7 +149,7 @@ def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, fl
     return float(model[6]), float(model[7] + math.log2(n_dirs))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _offset_bits(offset: int) -> float:
     """Bits of a direction coded as an offset from the predicted one (see treecoding)."""
     if offset == 0:
@@ -311,7 +311,7 @@ def _search_run(
         )
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _search_parallel(
     runs,
     cost,

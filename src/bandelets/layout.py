@@ -64,7 +64,7 @@ class Segment:
     neighbours: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _raster_part(skip, box, parent_box, width, cls, sibling_box):
     """Wavelet coefficients of the subband ``box`` = (y0, x0, h, w) where ``skip`` (h, w) is
     False, in raster order; ``parent_box`` (y0, x0) of the coarser subband, or empty;
@@ -126,7 +126,7 @@ def _square_tables(square: int, k: int, width: int) -> tuple[np.ndarray, np.ndar
     return local.astype(np.int64), classes.astype(np.int64), relative.astype(np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bandelet_part(in_square, top, left, sizes, box, width, tables):
     """1D coefficients of the bandelet squares (corners ``top, left``, sides ``sizes``, in
     coding order), each square's coarse first; marks the squares in ``in_square``.

@@ -68,7 +68,7 @@ def quantize(x: np.ndarray, threshold: float) -> np.ndarray:
     return q
 
 
-@njit(cache=True, error_model="numpy")  # T = 0 divides to inf, then refused
+@njit(cache=True, nogil=True, error_model="numpy")  # T = 0 divides to inf, then refused
 def _quantize(x, threshold, out):
     """Fills ``out`` with the bin indices of ``x``; returns the largest magnitude, unless it
     reaches MAX_INDEX (then returns it at once, ``out`` unfinished)."""
@@ -100,14 +100,14 @@ def dequantize(q: np.ndarray, threshold: float) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _dequantize(q, threshold, out):
     for i in range(q.shape[0]):
         v = float(q[i])
         out[i] = np.sign(v) * (abs(v) + RECONSTRUCTION) * threshold
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def bin_and_error(x: float, threshold: float) -> tuple[int, float]:
     """:func:`bin_index` and :func:`quantization_error` of one value, with one division."""
     a = abs(x)
@@ -118,13 +118,13 @@ def bin_and_error(x: float, threshold: float) -> tuple[int, float]:
     return m, e * e
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def bin_index(x: float, threshold: float) -> int:
     """``|Q_T|`` bin index of one value: 0 in the dead zone, else ``floor(|x| / T)``."""
     return bin_and_error(x, threshold)[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def quantization_error(x: float, threshold: float) -> float:
     """Squared error ``(x - Q_T(x))**2`` of one value."""
     return bin_and_error(x, threshold)[1]

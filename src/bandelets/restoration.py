@@ -61,7 +61,10 @@ only where it ends, is what the encoder's choice of the count regularises.
 from __future__ import annotations
 
 import math
+import os
+import threading
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from itertools import count
 
 import numpy as np
@@ -98,6 +101,14 @@ SECOND_EDGE = 0.5
 PROJECT_EVERY = 10
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
+#: Pixels from which :func:`penalty_gradient` computes its two halves in two threads: at 128^2 x 3
+#: already 0.29 ms against 0.36 in one, at 512^2 2.9 ms against 5.0 (2-core machine).
+THREADED_SAMPLES = 128 * 128
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+if hasattr(os, "register_at_fork"):  # a forked child has the pool but not its thread: a new one
+    os.register_at_fork(after_in_child=lambda: globals().update(_POOL=None, _POOL_LOCK=threading.Lock()))
 
 
 def penalty_gradient(
@@ -129,8 +140,13 @@ def penalty_gradient(
         >= 0; 0 leaves the second-order term out.
     out : ndarray, shape (C, H, W), float64, row-major, optional
         Where to write the gradient (not ``x``).
-    work : ndarray, shape (5, H, W), float64, row-major, optional
+    work : ndarray, shape (5, H + 4, W), float64, row-major, optional
         Scratch space (the restoration passes the same one at every iteration).
+
+    Notes
+    -----
+    From :data:`THREADED_SAMPLES` pixels on, the two halves of the rows are computed in two
+    threads (the same numbers as in one).
 
     Returns
     -------
@@ -138,9 +154,39 @@ def penalty_gradient(
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty_like(x) if out is None else out
-    work = np.empty((5, *x.shape[1:])) if work is None else work
-    _gradient(x, float(smoothing), float(edge), float(second_order), float(second_edge), out, work)
+    rows, cols = x.shape[1:]
+    work = np.empty((5, rows + 4, cols)) if work is None else work
+    constants = float(smoothing), float(edge), float(second_order), float(second_edge)
+    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
+        _gradient(tuple(x), *constants, tuple(out), tuple(work[:, :rows]), 0, rows)
+        return out
+    # Two halves of the rows, each with the two rows past its cut that its stencils reach (done
+    # twice, on its own scratch rows): every sample is the same sum as in one piece. Channels and
+    # scratch planes go in as tuples of row ranges, which stay contiguous (a 3D slice would not).
+    half = rows // 2
+    future = _pool().submit(
+        _gradient,
+        tuple(x[:, half - 2 :]),
+        *constants,
+        tuple(out[:, half - 2 :]),
+        tuple(work[:, half + 2 :]),
+        2,
+        rows - half + 2,
+    )
+    _gradient(
+        tuple(x[:, : half + 2]), *constants, tuple(out[:, : half + 2]), tuple(work[:, : half + 2]), 0, half
+    )
+    future.result()
     return out
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The thread that computes the second half of the penalty's gradient (one for the process)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bandelets-gradient")
+        return _POOL
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -154,8 +200,9 @@ def _log_weight(squared_norm, smoothing, edge):
 
 
 @njit(cache=True, nogil=True)
-def _gradient(x, smoothing, edge, second_order, second_edge, out, work):
-    """:func:`penalty_gradient` into ``out``. The weights of every pixel first, then, channel by
+def _gradient(x, smoothing, edge, second_order, second_edge, out, work, start, stop):
+    """:func:`penalty_gradient` into the rows ``start`` to ``stop`` of ``out`` (the others are left
+    untouched). The weights of every pixel first, then, channel by
     channel, what each pixel's second differences spread to its neighbours, then every sample
     gathers its terms: the same numbers, added in the same order, as a scatter of each pixel's
     stencil over the pixels in row-major order, without a branch inside the image."""
@@ -164,17 +211,17 @@ def _gradient(x, smoothing, edge, second_order, second_edge, out, work):
     second = second_order > 0.0
     if second:
         _second_weights(x, smoothing, second_order, second_edge, w)
-    for c in range(x.shape[0]):
+    for c in range(len(x)):
         if second:
             _second_terms(x[c], w, a, b, d)
-        _divergence(x[c], inverse, a, b, d, second, out[c])
+        _divergence(x[c], inverse, a, b, d, second, out[c], start, stop)
 
 
 @njit(cache=True, nogil=True)
-def _divergence(v, inverse, a, b, d, second, out):
-    """The gradient of the channel ``v`` at every pixel (see :func:`_gradient`)."""
+def _divergence(v, inverse, a, b, d, second, out, start, stop):
+    """The gradient of the channel ``v`` on the rows ``start`` to ``stop`` (see :func:`_gradient`)."""
     rows, cols = v.shape
-    for i in range(rows):
+    for i in range(start, stop):
         border = i == 0 or i == rows - 1
         for j in range(0, cols, 1 if border else max(cols - 1, 1)):
             out[i, j] = _pixel(v, inverse, a, b, d, i, j, second, False)
@@ -223,7 +270,7 @@ def _pixel(v, inverse, a, b, d, i, j, second, inside):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _first_weights(x, smoothing, edge, inverse):
     """The weight of the joint gradient at every pixel (forward differences, 0 past the end)."""
-    channels, rows, cols = x.shape
+    channels, (rows, cols) = len(x), x[0].shape
     s = np.empty(cols)
     for i in range(rows):
         s[:] = 0.0
@@ -247,7 +294,7 @@ def _first_weights(x, smoothing, edge, inverse):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _second_weights(x, smoothing, weight, edge, w):
     """``weight`` times the weight of the joint second differences at every pixel."""
-    channels, rows, cols = x.shape
+    channels, (rows, cols) = len(x), x[0].shape
     s = np.empty(cols)
     for i in range(rows):
         s[:] = 0.0
@@ -328,7 +375,7 @@ def iterate(
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
     ahead, t = x.copy(), 1.0
     # Two images, the step and the penalty's scratch space: allocated once, not at every iteration.
-    step, work = np.empty_like(x), np.empty((5, *x.shape[1:]))
+    step, work = np.empty_like(x), np.empty((5, x.shape[1] + 4, x.shape[2]))
     constants = (SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold)
     for k in count(1):
         penalty_gradient(ahead, *constants, out=step, work=work)
