@@ -53,9 +53,10 @@ _PROB_ONE = 1 << _PROB_BITS
 _PROB_MIN = 32
 _MAX_SHIFT = 7
 _SHIFT = np.minimum(np.floor(np.log2(np.arange(2, 130))), _MAX_SHIFT).astype(np.int64)
-# State slots (encoder: low, range, cache, cache_size, pos; decoder: code, range, -, -, pos,
-# overrun), then the ideal code length spent so far, in 1/65536 bit.
-_LOW, _RANGE, _CACHE, _CACHE_SIZE, _POS, _OVERRUN, _SPENT = range(7)
+# State slots (encoder: low, range, cache, cache_size, pos; decoder: code, range, -, -, pos, which
+# runs past the end of a truncated stream), then the ideal code length the encoder spent so far,
+# in 1/65536 bit.
+_LOW, _RANGE, _CACHE, _CACHE_SIZE, _POS, _SPENT = range(6)
 _COST_SCALE = 65536.0
 # -log2 of a probability, tabulated on 12 bits: the ledger of what each decision costs.
 _COST = np.rint(-np.log2((np.arange(4096) + 0.5) / 4096) * _COST_SCALE).astype(np.int64)
@@ -105,7 +106,7 @@ class Coder:
         self.decoding = data is not None
         self.probs = np.full(n_contexts, _PROB_ONE // 2, np.int64)
         self.counts = np.zeros(n_contexts, np.int64)
-        self.state = np.zeros(7, np.int64)
+        self.state = np.zeros(6, np.int64)
         if self.decoding:
             self.buf = np.frombuffer(bytes(data), np.uint8).copy()
             _decoder_start(self.state, self.buf)
@@ -131,75 +132,91 @@ class Coder:
 
     def check(self) -> None:
         """Raise :class:`CorruptStream` if the decoder ran past the end of its stream."""
-        if self.decoding and self.state[_OVERRUN] > 4:
+        if self.decoding and self.state[_POS] - self.buf.shape[0] > 4:
             raise CorruptStream("coded stream is truncated or corrupt")
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _registers(st):
+    """The registers of a coder, as a tuple a kernel threads through its decisions and stores back
+    (:func:`_keep`) at its end: a tuple stays in machine registers, the elements of an array are
+    reloaded after every store into a context table that might alias them."""
+    return st[_LOW], st[_RANGE], st[_CACHE], st[_CACHE_SIZE], st[_POS], st[_SPENT]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _keep(st, r):
+    st[_LOW], st[_RANGE], st[_CACHE], st[_CACHE_SIZE], st[_POS], st[_SPENT] = r
+
+
 @njit(cache=True, nogil=True)
-def _shift_low(st, buf):
-    low = st[_LOW]
+def _shift_low(r, buf):
+    low, rng, cache, cache_size, pos, spent = r
     if low < 0xFF000000 or low > 0xFFFFFFFF:
         carry = low >> 32
-        temp = st[_CACHE]
+        temp = cache
         while True:
-            buf[st[_POS]] = (temp + carry) & 0xFF
-            st[_POS] += 1
+            buf[pos] = (temp + carry) & 0xFF
+            pos += 1
             temp = 0xFF
-            st[_CACHE_SIZE] -= 1
-            if st[_CACHE_SIZE] == 0:
+            cache_size -= 1
+            if cache_size == 0:
                 break
-        st[_CACHE] = (low >> 24) & 0xFF
-    st[_CACHE_SIZE] += 1
-    st[_LOW] = (low & 0x00FFFFFF) << 8
+        cache = (low >> 24) & 0xFF
+    return (low & 0x00FFFFFF) << 8, rng, cache, cache_size + 1, pos, spent
 
 
 @njit(cache=True, nogil=True)
 def _encoder_flush(st, buf):
+    r = _registers(st)
     for _ in range(5):
-        _shift_low(st, buf)
+        r = _shift_low(r, buf)
+    _keep(st, r)
 
 
-@njit(cache=True, nogil=True)
-def _next_byte(st, buf):
-    pos = st[_POS]
-    st[_POS] = pos + 1
-    if pos < buf.shape[0]:
-        return np.int64(buf[pos])
-    st[_OVERRUN] += 1
-    return np.int64(0)
+@njit(cache=True, nogil=True, inline="always")
+def _next_byte(buf, pos):
+    """The byte at ``pos``, 0 past the end (the bytes read past it are counted by :meth:`Coder.check`)."""
+    return np.int64(buf[pos]) if pos < buf.shape[0] else np.int64(0)
 
 
 @njit(cache=True, nogil=True)
 def _decoder_start(st, buf):
     st[_RANGE] = 0xFFFFFFFF
     code = np.int64(0)
-    for _ in range(4):
-        code = (code << 8) | _next_byte(st, buf)
-    st[_LOW] = code
+    for pos in range(4):
+        code = (code << 8) | _next_byte(buf, pos)
+    st[_LOW], st[_POS] = code, 4
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _code_at(st, buf, p, bit, decoding):
-    """Code one binary decision whose 1 has probability ``p`` (of ``_PROB_ONE``); returns the bit."""
-    bound = (st[_RANGE] >> _PROB_BITS) * p
+def _code_at(r, buf, p, bit, decoding):
+    """Code one binary decision whose 1 has probability ``p`` (of ``_PROB_ONE``) with the coder
+    registers ``r``; returns the bit and the registers."""
+    low, rng, cache, cache_size, pos, spent = r
+    bound = (rng >> _PROB_BITS) * p
     if decoding:
-        bit = 1 if st[_LOW] < bound else 0
-    st[_SPENT] += _COST[(p if bit else _PROB_ONE - p) >> 4]
+        bit = 1 if low < bound else 0
+    else:
+        spent += _COST[(p if bit else _PROB_ONE - p) >> 4]
     if bit:
-        st[_RANGE] = bound
+        rng = bound
     else:
         if not decoding:
-            st[_LOW] += bound
+            low += bound
         else:
-            st[_LOW] -= bound
-        st[_RANGE] -= bound
-    while st[_RANGE] < _TOP:
-        st[_RANGE] <<= 8
+            low -= bound
+        rng -= bound
+    while rng < _TOP:
+        rng <<= 8
         if decoding:
-            st[_LOW] = ((st[_LOW] << 8) | _next_byte(st, buf)) & 0xFFFFFFFF
+            low = ((low << 8) | _next_byte(buf, pos)) & 0xFFFFFFFF
+            pos += 1
         else:
-            _shift_low(st, buf)
-    return bit
+            low, rng, cache, cache_size, pos, spent = _shift_low(
+                (low, rng, cache, cache_size, pos, spent), buf
+            )
+    return bit, (low, rng, cache, cache_size, pos, spent)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -220,42 +237,41 @@ def _adapt(probs, counts, ctx, bit):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _code_bit(st, buf, probs, counts, ctx, bit, decoding):
-    """Code one binary decision in context ``ctx``; returns the bit (decoded or given)."""
-    bit = _code_at(st, buf, probs[ctx], bit, decoding)
-    if counts is not None:
-        _adapt(probs, counts, ctx, bit)
-    return bit
+def _code_bit(r, buf, probs, counts, ctx, bit, decoding):
+    """Code one binary decision in context ``ctx``; returns the bit (decoded or given) and the registers."""
+    bit, r = _code_at(r, buf, probs[ctx], bit, decoding)
+    _adapt(probs, counts, ctx, bit)
+    return bit, r
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _code_backed(st, buf, probs, counts, ctx, coarse, bit, decoding):
+def _code_backed(r, buf, probs, counts, ctx, coarse, bit, decoding):
     """Code one binary decision in context ``ctx`` backed by the ``coarse`` context that it
     refines: while ``ctx`` has been used ``n`` times, its probability is weighted ``n`` against
     ``_BACKOFF`` for the coarse one, so that a rarely used context starts from what its
     neighbours in the table learned instead of from 1/2. Both adapt, until ``ctx`` is mature."""
     n = counts[ctx]
     if n == _MATURE:  # the coarse context's weight would be 3 %: left out, for speed
-        return _code_bit(st, buf, probs, counts, ctx, bit, decoding)
+        return _code_bit(r, buf, probs, counts, ctx, bit, decoding)
     p = (n * probs[ctx] + _BACKOFF * probs[coarse]) // (n + _BACKOFF)
-    bit = _code_at(st, buf, p, bit, decoding)
+    bit, r = _code_at(r, buf, p, bit, decoding)
     _adapt(probs, counts, ctx, bit)
     _adapt(probs, counts, coarse, bit)
-    return bit
-
-
-_EQUIPROBABLE = np.array([_PROB_ONE // 2], np.int64)
+    return bit, r
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _code_raw_bit(st, buf, bit, decoding, half):
-    return _code_bit(st, buf, half, None, 0, bit, decoding)
+def _code_raw_bit(r, buf, bit, decoding):
+    """Code one equiprobable bit (no context); returns it and the registers."""
+    return _code_at(r, buf, _PROB_ONE // 2, bit, decoding)
 
 
 @njit(cache=True, nogil=True)
 def _flags(st, buf, probs, counts, bits, ctxs, decoding):
+    r = _registers(st)
     for i in range(bits.shape[0]):
-        bits[i] = _code_bit(st, buf, probs, counts, ctxs[i], bits[i], decoding)
+        bits[i], r = _code_bit(r, buf, probs, counts, ctxs[i], bits[i], decoding)
+    _keep(st, r)
 
 
 def code_flags(coder: Coder, bits: np.ndarray, ctxs: np.ndarray) -> np.ndarray:
@@ -283,14 +299,16 @@ def code_flags(coder: Coder, bits: np.ndarray, ctxs: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _symbols(st, buf, probs, counts, symbols, bases, n_bits, decoding):
+    r = _registers(st)
     for i in range(symbols.shape[0]):
         # Binary tree over n_bits bits, most significant first: node contexts 1 .. 2**n_bits - 1.
         node = 1
         value = symbols[i]
         for b in range(n_bits[i] - 1, -1, -1):
-            bit = _code_bit(st, buf, probs, counts, bases[i] + node, (value >> b) & 1, decoding)
+            bit, r = _code_bit(r, buf, probs, counts, bases[i] + node, (value >> b) & 1, decoding)
             node = 2 * node + bit
         symbols[i] = node - (1 << n_bits[i])
+    _keep(st, r)
 
 
 def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: np.ndarray) -> np.ndarray:
@@ -316,38 +334,44 @@ def code_symbols(coder: Coder, symbols: np.ndarray, bases: np.ndarray, n_bits: n
 
 
 @njit(cache=True, nogil=True)
-def _elias_gamma(st, buf, probs, counts, half, r, base, decoding, coarse=-1):
-    """Code ``r >= 1``: adaptive unary prefix ``floor(log2 r)`` (contexts ``base + i``), then
-    its low bits equiprobable. Returns ``r`` (decoded when decoding), -1 if corrupt."""
+def _elias_gamma(r, buf, probs, counts, value, base, decoding, coarse=-1):
+    """Code ``value >= 1``: adaptive unary prefix ``floor(log2 value)`` (contexts ``base + i``), then
+    its low bits equiprobable. Returns ``value`` (decoded when decoding; -1 if corrupt) and the
+    registers."""
     n_prefix = 0
-    while (r >> (n_prefix + 1)) > 0:
+    while (value >> (n_prefix + 1)) > 0:
         n_prefix += 1
     e = 0
     while True:
         ctx = base + min(e, _EG_PREFIX - 1)
         bit = 1 if e < n_prefix else 0
         if coarse >= 0:
-            bit = _code_backed(st, buf, probs, counts, ctx, coarse + min(e, _EG_PREFIX - 1), bit, decoding)
+            bit, r = _code_backed(r, buf, probs, counts, ctx, coarse + min(e, _EG_PREFIX - 1), bit, decoding)
         else:
-            bit = _code_bit(st, buf, probs, counts, ctx, bit, decoding)
+            bit, r = _code_bit(r, buf, probs, counts, ctx, bit, decoding)
         if bit == 0:
             break
         e += 1
         if e > _MAX_PREFIX:
-            return -1
-    value = 1
+            return -1, r
+    out = 1
     for b in range(e - 1, -1, -1):
-        value = 2 * value + _code_raw_bit(st, buf, (r >> b) & 1, decoding, half)
-    return value
+        bit, r = _code_raw_bit(r, buf, (value >> b) & 1, decoding)
+        out = 2 * out + bit
+    return out, r
 
 
 @njit(cache=True, nogil=True)
-def _positive(st, buf, probs, counts, half, values, bases, decoding):
+def _positive(st, buf, probs, counts, values, bases, decoding):
+    r = _registers(st)
+    status = 0
     for i in range(values.shape[0]):
-        values[i] = _elias_gamma(st, buf, probs, counts, half, values[i], bases[i], decoding)
+        values[i], r = _elias_gamma(r, buf, probs, counts, values[i], bases[i], decoding)
         if values[i] < 0:
-            return -1
-    return 0
+            status = -1
+            break
+    _keep(st, r)
+    return status
 
 
 def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.ndarray:
@@ -357,29 +381,20 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
     """
     values = np.array(values, np.int64)
     coder.reserve(8 * values.shape[0] + 16)
-    if (
-        _positive(
-            coder.state,
-            coder.buf,
-            coder.probs,
-            coder.counts,
-            _EQUIPROBABLE.copy(),
-            values,
-            np.asarray(bases, np.int64),
-            coder.decoding,
-        )
-        != 0
-    ):
+    bases = np.asarray(bases, np.int64)
+    if _positive(coder.state, coder.buf, coder.probs, coder.counts, values, bases, coder.decoding) != 0:
         raise CorruptStream("coded integer stream is corrupt")
     return values
 
 
 @njit(cache=True, nogil=True)
-def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, classes, neighbours, decoding):
+def _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, decoding):
+    r = _registers(st)
+    status = 0
     mags = np.zeros(5, np.int64)
     for i in range(order.shape[0]):
         at = order[i]
-        before = st[_SPENT]
+        before = r[_SPENT]
         cls = classes[i]
         for k in range(5):
             j = neighbours[i, k]
@@ -395,31 +410,29 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
         ctx = (near * 3 + mags[4]) * _N_GUIDE + g
         fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
-        if _code_backed(st, buf, probs, counts, fine, _SIG_COARSE + ctx, 1 if m > 0 else 0, decoding) == 0:
+        significant, r = _code_backed(
+            r, buf, probs, counts, fine, _SIG_COARSE + ctx, 1 if m > 0 else 0, decoding
+        )
+        if significant == 0:
             m = 0
         else:
             near5 = min(near, 4) * _N_GUIDE + g
             fine = cls * 5 * _N_GUIDE + near5
-            if _code_backed(
-                st, buf, probs, counts, _GT1 + fine, _GT1_COARSE + near5, 1 if m > 1 else 0, decoding
-            ):
-                if _code_backed(
-                    st, buf, probs, counts, _GT2 + fine, _GT2_COARSE + near5, 1 if m > 2 else 0, decoding
-                ):
-                    r = _elias_gamma(
-                        st,
-                        buf,
-                        probs,
-                        counts,
-                        half,
-                        m - 2,
-                        _PREFIX + cls * _EG_PREFIX,
-                        decoding,
-                        _PREFIX_COARSE,
+            above, r = _code_backed(
+                r, buf, probs, counts, _GT1 + fine, _GT1_COARSE + near5, 1 if m > 1 else 0, decoding
+            )
+            if above:
+                above, r = _code_backed(
+                    r, buf, probs, counts, _GT2 + fine, _GT2_COARSE + near5, 1 if m > 2 else 0, decoding
+                )
+                if above:
+                    rest, r = _elias_gamma(
+                        r, buf, probs, counts, m - 2, _PREFIX + cls * _EG_PREFIX, decoding, _PREFIX_COARSE
                     )
-                    if r < 0 or r > MAX_MAGNITUDE:
-                        return -1
-                    m = r + 2
+                    if rest < 0 or rest > MAX_MAGNITUDE:
+                        status = -1
+                        break
+                    m = rest + 2
                 else:
                     m = 2
             else:
@@ -430,8 +443,8 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
             if guide.shape[0] > 0 and guide[at] != 0:
                 sign_ctx += 3 if guide[at] > 0 else 6
-            negative = _code_backed(
-                st,
+            negative, r = _code_backed(
+                r,
                 buf,
                 probs,
                 counts,
@@ -443,12 +456,15 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             if negative:
                 m = -m
         known[at] = predicted + m
-        spent[at] = (st[_SPENT] - before) / _COST_SCALE
         if decoding:
             if abs(known[at]) > MAX_MAGNITUDE:
-                return -1
+                status = -1
+                break
             q[at] = known[at]
-    return 0
+        else:
+            spent[at] = (r[_SPENT] - before) / _COST_SCALE
+    _keep(st, r)
+    return status
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -490,8 +506,8 @@ def code_coefficients(
         magnitude at the same position is a context (the channels of a normal map or a
         geometry image change at the same places); empty for the first channel.
     spent : ndarray of float64, shape (H * W,)
-        Receives the ideal code length of each coefficient coded, in bits (what the rate
-        model of :mod:`bandelets.lagrangian` is fitted to).
+        Receives the ideal code length of each coefficient encoded, in bits (what the rate
+        model of :mod:`bandelets.lagrangian` is fitted to); left alone when decoding.
     """
     if not coder.decoding:
         bits = np.abs(q[plan.order]).astype(np.int64)
@@ -504,7 +520,6 @@ def code_coefficients(
         coder.buf,
         coder.probs,
         coder.counts,
-        _EQUIPROBABLE.copy(),
         q,
         known,
         guide,
