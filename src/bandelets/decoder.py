@@ -211,12 +211,13 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
 
 def decoded_image(channels, header: Header) -> np.ndarray:
     """What :func:`decode` returns, from the decoded (padded) channels."""
-    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
-    if not np.all(np.isfinite(out)):
+    if header.kind == "normal-map":  # 2 or 3 channels (bandelets.bitstream.unpack)
+        out = metrics.unit_normals(channels, header.height, header.width)
+    else:
+        out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
+    if out is None or not np.all(np.isfinite(out)):
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
-        if header.channels == 2:
-            out = metrics.with_z(out)
         # Returned in the layout the source had (bandelets.bitstream.LAYOUTS).
-        out = metrics.unit_vectors(out)[..., : 2 if header.layout == "xy" else 3]
+        return out[..., :2] if header.layout == "xy" else out
     return out[..., 0] if header.channels == 1 else out
