@@ -211,13 +211,14 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
 
 def decoded_image(channels, header: Header) -> np.ndarray:
     """What :func:`decode` returns, from the decoded (padded) channels."""
+    overflow = FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":  # 2 or 3 channels (bandelets.bitstream.unpack)
         out = metrics.unit_normals(channels, header.height, header.width)
-    else:
-        out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
-    if out is None or not np.all(np.isfinite(out)):
-        raise FormatError("corrupt .bdl file: the decoded values overflow")
-    if header.kind == "normal-map":
+        if out is None:
+            raise overflow
         # Returned in the layout the source had (bandelets.bitstream.LAYOUTS).
         return out[..., :2] if header.layout == "xy" else out
+    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
+    if not np.all(np.isfinite(out)):
+        raise overflow
     return out[..., 0] if header.channels == 1 else out
