@@ -165,3 +165,40 @@ def test_rarely_used_contexts_learn_from_their_family():
     out = np.ones(n, np.int32)
     entropy.code_coefficients(decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n))
     np.testing.assert_array_equal(out, q)
+
+
+def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
+    # Every path of the coefficient coder: zeros, +-1, +-2, large magnitudes (Elias-gamma), the
+    # approximation's prediction, neighbours, parents and a guide channel.
+    from bandelets.layout import approximation_plan, subband_plan
+    from bandelets.quadtree import flat_quadtree
+
+    shape, levels = (32, 32), 2
+    size = shape[0] * shape[1]
+    plans = [approximation_plan(shape, levels)]
+    for index in range(3 * levels):
+        band = ((shape[0] >> levels) << (index // 3),) * 2
+        plans += subband_plan(shape, levels, index, flat_quadtree(band, 0), "haar")
+    guide = rng.integers(-3, 4, size).astype(np.int32)
+    q = np.where(rng.random(size) < 0.6, 0, rng.integers(-40, 41, size)).astype(np.int32)
+    q[plans[0].order] = rng.integers(-2000, 2000, plans[0].order.size)
+    encoder, known, spent = Coder(entropy.coefficient_contexts()), np.zeros(size, np.int64), np.zeros(size)
+    for plan in plans:
+        entropy.code_coefficients(encoder, q, plan, known, guide, spent)
+    assert sum(p.order.size for p in plans) == size
+    assert np.all(spent > 0)
+    # The per-coefficient prices add up to the coder's own ledger.
+    assert spent.sum() == pytest.approx(encoder.state[entropy._SPENT] / entropy._COST_SCALE)
+    data = encoder.finish()
+    assert 8 * len(data) == pytest.approx(spent.sum(), rel=0.02, abs=64)
+    decoder, out = Coder(entropy.coefficient_contexts(), data), np.zeros(size, np.int32)
+    known = np.zeros(size, np.int64)
+    for plan in plans:
+        entropy.code_coefficients(decoder, out, plan, known, guide, np.zeros(size))
+    np.testing.assert_array_equal(out, q)
+    decoder.check()
+    # Cut short, the same stream is refused (the decoder counts the bytes it reads past the end).
+    decoder, known = Coder(entropy.coefficient_contexts(), data[: len(data) // 2]), np.zeros(size, np.int64)
+    with pytest.raises(CorruptStream):
+        for plan in plans:
+            entropy.code_coefficients(decoder, np.zeros(size, np.int32), plan, known, guide, np.zeros(size))

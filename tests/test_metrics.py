@@ -118,3 +118,20 @@ def test_angular_error_of_xy_maps_rebuilds_z():
     assert error.max == pytest.approx(np.degrees(np.arcsin(0.6)))
     with pytest.raises(ValueError, match="one shape"):
         angular_error(np.ones((2, 2, 3)), np.ones((2, 3, 3)))
+
+
+@pytest.mark.parametrize("channels", [2, 3])
+def test_unit_normals_are_the_unit_vectors_of_the_decoded_channels(channels, rng):
+    from bandelets.metrics import unit_normals
+
+    padded = rng.uniform(-1.2, 1.2, (channels, 12, 15))  # some x, y outside the unit disc
+    padded[:, 0, 0] = 0.0  # a zero vector (with three channels) turns to +z
+    padded[:, -1, -1] = np.nan  # in the padding: not returned, not checked
+    got = unit_normals(padded, 10, 13)
+    box = np.moveaxis(padded[:, :10, :13], 0, -1)
+    expected = unit_vectors(with_z(box) if channels == 2 else box)
+    assert got.shape == (10, 13, 3)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=4e-16)
+    np.testing.assert_allclose(np.linalg.norm(got, axis=-1), 1.0, atol=1e-15)
+    padded[1, 3, 4] = np.inf
+    assert unit_normals(padded, 10, 13) is None
