@@ -132,7 +132,7 @@ def _code_directions(coder, tree, reference, activity, decoded):
     context = _HAS + (3 * level + state) * _N_ACTIVITY + activity(rows, cols, widths)
     has = entropy.code_flags(coder, dirs >= 0 if tree else np.zeros(rows.shape), context)
     out = np.full(rows.shape, -1, np.int64)
-    for k in np.unique(level):
+    for k in np.unique(level[has == 1]):  # the levels with a direction to code
         width = MIN_WIDTH << int(k)
         n_dirs = directions(width)[1].shape[0]
         # With a reference: cyclic offset from the direction nearest to its angle.
