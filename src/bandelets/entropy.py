@@ -36,6 +36,8 @@ __all__ = [
     "Coder",
     "CorruptStream",
     "N_CLASSES",
+    "N_HINTS",
+    "SQUARE_START",
     "code_flags",
     "code_positive",
     "code_symbols",
@@ -83,7 +85,16 @@ _GT1_COARSE = _SIG_COARSE + _N_SUM * 3 * _N_GUIDE
 _GT2_COARSE = _GT1_COARSE + 5 * _N_GUIDE
 _SIGN_COARSE = _GT2_COARSE + 5 * _N_GUIDE
 _PREFIX_COARSE = _SIGN_COARSE + 27
-_N_COEFF_CONTEXTS = _PREFIX_COARSE + _EG_PREFIX
+# The bandelet classes' own significance and sign contexts (:func:`_bandelet_significance`,
+# :func:`_bandelet_sign`), backed by the same coarse ones.
+_FIRST_BANDELET = 16
+#: Number of hints a bandelet coefficient's significance context adds
+#: (:func:`bandelets.squarecontexts.square_hints`), and the flag of a square's first coefficient.
+N_HINTS = 24
+SQUARE_START = 1 << 8
+_BSIG = _PREFIX_COARSE + _EG_PREFIX
+_BSIGN = _BSIG + (N_CLASSES - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE * N_HINTS
+_N_COEFF_CONTEXTS = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
 _BACKOFF = 4
 _MATURE = _SHIFT.shape[0] - 1  # the count at which a context stops counting
 
@@ -245,6 +256,7 @@ def _code_backed(st, buf, probs, counts, ctx, coarse, bit, decoding):
 
 
 _EQUIPROBABLE = np.array([_PROB_ONE // 2], np.int64)
+_NO_HINTS = np.zeros(0, np.int64)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -375,8 +387,11 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
 
 
 @njit(cache=True, nogil=True)
-def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, classes, neighbours, decoding):
+def _coefficients(
+    st, buf, probs, counts, half, q, known, guide, spent, order, classes, neighbours, hints, decoding
+):
     mags = np.zeros(5, np.int64)
+    agree = 0  # in a bandelet square: signs equal to the guide's so far, minus those opposite
     for i in range(order.shape[0]):
         at = order[i]
         before = st[_SPENT]
@@ -394,7 +409,12 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
         ctx = (near * 3 + mags[4]) * _N_GUIDE + g
-        fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
+        if hints.shape[0]:
+            fine = _bandelet_significance(cls, ctx, hints[i])
+            if hints[i] & SQUARE_START:
+                agree = 0
+        else:
+            fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
         if _code_backed(st, buf, probs, counts, fine, _SIG_COARSE + ctx, 1 if m > 0 else 0, decoding) == 0:
             m = 0
         else:
@@ -428,20 +448,20 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
             sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
             j = neighbours[i, 1]
             sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
-            if guide.shape[0] > 0 and guide[at] != 0:
-                sign_ctx += 3 if guide[at] > 0 else 6
+            leader = guide[at] if guide.shape[0] > 0 else 0
+            if hints.shape[0]:
+                sign_ctx, fine = _bandelet_sign(cls, sign_ctx, leader, agree)
+            else:
+                if leader != 0:
+                    sign_ctx += 3 if leader > 0 else 6
+                fine = _SIGN + cls * 27 + sign_ctx
             negative = _code_backed(
-                st,
-                buf,
-                probs,
-                counts,
-                _SIGN + cls * 27 + sign_ctx,
-                _SIGN_COARSE + sign_ctx,
-                1 if value < 0 else 0,
-                decoding,
+                st, buf, probs, counts, fine, _SIGN_COARSE + sign_ctx, 1 if value < 0 else 0, decoding
             )
             if negative:
                 m = -m
+            if leader != 0:
+                agree += 1 if (leader < 0) == (negative == 1) else -1
         known[at] = predicted + m
         spent[at] = (st[_SPENT] - before) / _COST_SCALE
         if decoding:
@@ -449,6 +469,25 @@ def _coefficients(st, buf, probs, counts, half, q, known, guide, spent, order, c
                 return -1
             q[at] = known[at]
     return 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bandelet_significance(cls, ctx, hint):
+    """Significance context of a 1D bandelet coefficient: its class and the contexts of every
+    class (neighbours, parent, guide), refined by the ``hint`` read around its square."""
+    return _BSIG + ((cls - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE + ctx) * N_HINTS + (hint & (SQUARE_START - 1))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bandelet_sign(cls, sign_ctx, leader, agree):
+    """Sign context of a 1D bandelet coefficient: the signs of its two 1D neighbours
+    (``sign_ctx`` < 9 + 18) and the guide channel's sign ``leader``, flipped when the signs coded
+    so far in the square mostly disagreed with the guide's (``agree`` < 0: across a crease the
+    two channels of a normal map change together, in a proportion of either sign). Returns the
+    shared context (< 27) and the class's own."""
+    if leader != 0:
+        sign_ctx += 3 if (leader > 0) == (agree >= 0) else 6
+    return sign_ctx, _BSIGN + (cls - _FIRST_BANDELET) * 54 + sign_ctx + (27 if agree != 0 else 0)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -471,7 +510,13 @@ def coefficient_contexts() -> int:
 
 
 def code_coefficients(
-    coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray, spent: np.ndarray
+    coder: Coder,
+    q: np.ndarray,
+    plan,
+    known: np.ndarray,
+    guide: np.ndarray,
+    spent: np.ndarray,
+    hints: np.ndarray | None = None,
 ) -> None:
     """Code the quantized coefficients ``plan.order`` of one channel.
 
@@ -492,6 +537,9 @@ def code_coefficients(
     spent : ndarray of float64, shape (H * W,)
         Receives the ideal code length of each coefficient coded, in bits (what the rate
         model of :mod:`bandelets.lagrangian` is fitted to).
+    hints : ndarray of int64, shape (n,), optional
+        For a segment of bandelet squares: :func:`bandelets.squarecontexts.square_hints`,
+        which selects the bandelet classes' own significance and sign contexts.
     """
     if not coder.decoding:
         bits = np.abs(q[plan.order]).astype(np.int64)
@@ -512,6 +560,7 @@ def code_coefficients(
         plan.order,
         plan.classes,
         plan.neighbours,
+        _NO_HINTS if hints is None else hints,
         coder.decoding,
     )
     if status != 0:
