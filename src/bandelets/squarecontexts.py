@@ -52,22 +52,21 @@ def _hints(out, known, width, top, left, sizes, dirs, sibling, parent, orders, m
     """Hints of the squares (corners ``top, left`` in their subband, sides ``sizes``, directions
     ``dirs``, in coding order) into ``out``; ``sibling`` and ``parent`` are the (y0, x0) of those
     subbands in the raveled layout ``known`` of ``width`` columns, or empty."""
+    most = MAX_WIDTH * MAX_WIDTH
+    v, tmp, predicted = np.empty(most), np.empty(most), np.empty(most)
     i = 0
     for s in range(top.shape[0]):
         size = sizes[s]
         n = size * size
         j_width = int(np.log2(size // MIN_WIDTH))
         order = orders[j_width][dirs[s]]
-        predicted = np.empty(n)
         if sibling.size:
-            v = np.empty(n)
-            tmp = np.empty(n)
             for t in range(n):
                 r, c = order[t] // size, order[t] % size
                 q = known[(sibling[0] + top[s] + r) * width + sibling[1] + left[s] + c]
                 x = (abs(q) + RECONSTRUCTION) if q != 0 else 0.0
                 v[t] = x if q > 0 else -x
-            multiwavelet(v, tmp, predicted, mats[j_width])
+            multiwavelet(v[:n], tmp[:n], predicted[:n], mats[j_width])
         for j in range(n):
             if sibling.size:
                 p = abs(predicted[j])
