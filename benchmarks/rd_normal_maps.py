@@ -21,8 +21,9 @@ the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). Th
 ``acacia_door_bottom_n.png`` stores X and Y only (red, green; blue holds ambient occlusion), as
 BC5 does: its Z is rebuilt, ``sqrt(1 - x^2 - y^2)``, into an 8-bit RGB map that every codec is
 given. The tables (PSNR per point, BD-PSNR of the first codec of ``--codecs``, ``lifting`` by
-default, over every other codec, positive: the first better) are printed and stored in ``benchmarks/rd-normal-maps-real.md`` (with
-``--samples``, ``benchmarks/rd-normal-maps-samples-SIZE.md``).
+default, over every other codec, positive: the first better) are printed and stored in
+``benchmarks/rd-normal-maps-real.md`` (with ``--samples``,
+``benchmarks/rd-normal-maps-samples-SIZE.md``).
 """
 
 from __future__ import annotations

@@ -475,7 +475,8 @@ def _coefficients(
 def _bandelet_significance(cls, ctx, hint):
     """Significance context of a 1D bandelet coefficient: its class and the contexts of every
     class (neighbours, parent, guide), refined by the ``hint`` read around its square."""
-    return _BSIG + ((cls - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE + ctx) * N_HINTS + (hint & (SQUARE_START - 1))
+    fine = (cls - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE + ctx
+    return _BSIG + fine * N_HINTS + (hint & (SQUARE_START - 1))
 
 
 @njit(cache=True, nogil=True, inline="always")
