@@ -18,7 +18,9 @@ The coefficient contexts (:func:`code_coefficients`) are many (class x neighbour
 cost about a sixth of such a file. So each of them is backed by the same context shared by all
 the classes, which it outweighs as it is used
 (:func:`_code_backed`): +0.3 dB BD-PSNR on the crease map, +0.1 to +0.2 on the others
-(BENCHMARKS, "Context modelling of format version 9").
+(BENCHMARKS, "Context modelling of format version 9"). The 1D coefficients of the bandelet
+squares have significance and sign contexts of their own, refined by what
+:mod:`bandelets.squarecontexts` reads around their square (format version 10).
 
 The same functions encode and decode: each takes a ``decoding`` flag, so the context
 modelling, the only delicate part, is written once and cannot drift between the two sides.
