@@ -13,6 +13,7 @@ from .bandeletize import debandeletize_bins
 from .bitstream import Header
 from .layout import approximation_plan, subband_plan
 from .quadtree import flat_quadtree, root_width
+from .squarecontexts import square_hints
 from .treecoding import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
 from .wavelets import padded_shape, subband_slices
 
@@ -92,8 +93,9 @@ def code_image(
         out.append(tree)
         squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
         for c, q in enumerate(quantized):
-            entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c])
             if squares.order.size:
+                hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
+                entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c], hints)
                 view = known[c].reshape(shape)[where]
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])

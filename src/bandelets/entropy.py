@@ -18,7 +18,9 @@ The coefficient contexts (:func:`code_coefficients`) are many (class x neighbour
 cost about a sixth of such a file. So each of them is backed by the same context shared by all
 the classes, which it outweighs as it is used
 (:func:`_code_backed`): +0.3 dB BD-PSNR on the crease map, +0.1 to +0.2 on the others
-(BENCHMARKS, "Context modelling of format version 9").
+(BENCHMARKS, "Context modelling of format version 9"). The 1D coefficients of the bandelet
+squares have significance and sign contexts of their own, refined by what
+:mod:`bandelets.squarecontexts` reads around their square (format version 10).
 
 The same functions encode and decode: each takes a ``decoding`` flag, so the context
 modelling, the only delicate part, is written once and cannot drift between the two sides.
@@ -36,6 +38,8 @@ __all__ = [
     "Coder",
     "CorruptStream",
     "N_CLASSES",
+    "N_HINTS",
+    "SQUARE_START",
     "code_flags",
     "code_positive",
     "code_symbols",
@@ -84,7 +88,16 @@ _GT1_COARSE = _SIG_COARSE + _N_SUM * 3 * _N_GUIDE
 _GT2_COARSE = _GT1_COARSE + 5 * _N_GUIDE
 _SIGN_COARSE = _GT2_COARSE + 5 * _N_GUIDE
 _PREFIX_COARSE = _SIGN_COARSE + 27
-_N_COEFF_CONTEXTS = _PREFIX_COARSE + _EG_PREFIX
+# The bandelet classes' own significance and sign contexts (:func:`_bandelet_significance`,
+# :func:`_bandelet_sign`), backed by the same coarse ones.
+_FIRST_BANDELET = 16
+#: Number of hints a bandelet coefficient's significance context adds
+#: (:func:`bandelets.squarecontexts.square_hints`), and the flag of a square's first coefficient.
+N_HINTS = 24
+SQUARE_START = 1 << 8
+_BSIG = _PREFIX_COARSE + _EG_PREFIX
+_BSIGN = _BSIG + (N_CLASSES - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE * N_HINTS
+_N_COEFF_CONTEXTS = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
 _BACKOFF = 4
 _MATURE = _SHIFT.shape[0] - 1  # the count at which a context stops counting
 
@@ -266,6 +279,9 @@ def _code_backed(r, buf, probs, counts, ctx, coarse, bit, decoding):
     return bit, r
 
 
+_NO_HINTS = np.zeros(0, np.int64)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _code_raw_bit(r, buf, bit, decoding):
     """Code one equiprobable bit (no context); returns it and the registers."""
@@ -394,20 +410,27 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
 
 
 @_kernel
-def _decode_coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours):
-    return _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, True)
+def _decode_coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, hints):
+    return _coefficients(
+        st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, hints, True
+    )
 
 
 @_kernel
-def _encode_coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours):
-    return _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, False)
+def _encode_coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, hints):
+    return _coefficients(
+        st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, hints, False
+    )
 
 
 # Inlined into a decoder and an encoder, each compiled with its constant ``decoding``: 8 % faster.
 @njit(cache=True, nogil=True, inline="always")
-def _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, decoding):
+def _coefficients(
+    st, buf, probs, counts, q, known, guide, spent, order, classes, neighbours, hints, decoding
+):
     r = _registers(st)
     status = 0
+    agree = 0  # in a bandelet square: signs equal to the guide's so far, minus those opposite
     for i in range(order.shape[0]):
         at = order[i]
         before = r[_SPENT]
@@ -423,7 +446,12 @@ def _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
         ctx = (near * 3 + parent) * _N_GUIDE + g
-        fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
+        if hints.shape[0]:
+            fine = _bandelet_significance(cls, ctx, hints[i])
+            if hints[i] & SQUARE_START:
+                agree = 0
+        else:
+            fine = _SIG + cls * _N_SUM * 3 * _N_GUIDE + ctx
         significant, r = _code_backed(
             r, buf, probs, counts, fine, _SIG_COARSE + ctx, 1 if m > 0 else 0, decoding
         )
@@ -455,20 +483,20 @@ def _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes
             sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
             j = neighbours[i, 1]
             sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
-            if guide.shape[0] > 0 and guide[at] != 0:
-                sign_ctx += 3 if guide[at] > 0 else 6
+            leader = guide[at] if guide.shape[0] > 0 else 0
+            if hints.shape[0]:
+                sign_ctx, fine = _bandelet_sign(cls, sign_ctx, leader, agree)
+            else:
+                if leader != 0:
+                    sign_ctx += 3 if leader > 0 else 6
+                fine = _SIGN + cls * 27 + sign_ctx
             negative, r = _code_backed(
-                r,
-                buf,
-                probs,
-                counts,
-                _SIGN + cls * 27 + sign_ctx,
-                _SIGN_COARSE + sign_ctx,
-                1 if value < 0 else 0,
-                decoding,
+                r, buf, probs, counts, fine, _SIGN_COARSE + sign_ctx, 1 if value < 0 else 0, decoding
             )
             if negative:
                 m = -m
+            if leader != 0:
+                agree += 1 if (leader < 0) == (negative == 1) else -1
         known[at] = predicted + m
         if decoding:
             if abs(known[at]) > MAX_MAGNITUDE:
@@ -485,6 +513,26 @@ def _coefficients(st, buf, probs, counts, q, known, guide, spent, order, classes
 def _magnitude(known, j):
     """What the contexts see of the coefficient at ``j``: its magnitude up to 2 (0 for ``j < 0``)."""
     return min(abs(known[j]), 2) if j >= 0 else 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bandelet_significance(cls, ctx, hint):
+    """Significance context of a 1D bandelet coefficient: its class and the contexts of every
+    class (neighbours, parent, guide), refined by the ``hint`` read around its square."""
+    fine = (cls - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE + ctx
+    return _BSIG + fine * N_HINTS + (hint & (SQUARE_START - 1))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bandelet_sign(cls, sign_ctx, leader, agree):
+    """Sign context of a 1D bandelet coefficient: the signs of its two 1D neighbours
+    (``sign_ctx`` < 9 + 18) and the guide channel's sign ``leader``, flipped when the signs coded
+    so far in the square mostly disagreed with the guide's (``agree`` < 0: across a crease the
+    two channels of a normal map change together, in a proportion of either sign). Returns the
+    shared context (< 27) and the class's own."""
+    if leader != 0:
+        sign_ctx += 3 if (leader > 0) == (agree >= 0) else 6
+    return sign_ctx, _BSIGN + (cls - _FIRST_BANDELET) * 54 + sign_ctx + (27 if agree != 0 else 0)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -507,7 +555,13 @@ def coefficient_contexts() -> int:
 
 
 def code_coefficients(
-    coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray, spent: np.ndarray
+    coder: Coder,
+    q: np.ndarray,
+    plan,
+    known: np.ndarray,
+    guide: np.ndarray,
+    spent: np.ndarray,
+    hints: np.ndarray | None = None,
 ) -> None:
     """Code the quantized coefficients ``plan.order`` of one channel.
 
@@ -528,6 +582,9 @@ def code_coefficients(
     spent : ndarray of float64, shape (H * W,)
         Receives the ideal code length of each coefficient encoded, in bits (what the rate
         model of :mod:`bandelets.lagrangian` is fitted to); left alone when decoding.
+    hints : ndarray of int64, shape (n,), optional
+        For a segment of bandelet squares: :func:`bandelets.squarecontexts.square_hints`,
+        which selects the bandelet classes' own significance and sign contexts.
     """
     if not coder.decoding:
         bits = np.abs(q[plan.order]).astype(np.int64)
@@ -547,6 +604,7 @@ def code_coefficients(
         plan.order,
         plan.classes,
         plan.neighbours,
+        _NO_HINTS if hints is None else hints,
     )
     if status != 0:
         raise CorruptStream("coded coefficient stream is corrupt")

@@ -56,8 +56,10 @@ LAMBDA = 3.0 / 28.0
 
 #: Rate model, in bits: [significance factor, cost per significant coefficient, cost per
 #: doubling of its bin index] for wavelet squares then for bandelet squares, then the
-#: geometry: [bits of a NULL leaf, bits of a direction flag].
-RATE_MODEL = np.array([0.26, 3.73, 0.89, 0.14, 5.9, 0.8, 0.3, 1.0])
+#: geometry: [bits of a NULL leaf, bits of a direction flag]. The bandelet squares' cost per
+#: significant coefficient went from 5.9 to 5.5 bits with their contexts of format version 10
+#: (BENCHMARKS, "Contexts for the bandelet coefficients (format version 10)").
+RATE_MODEL = np.array([0.26, 3.73, 0.89, 0.14, 5.5, 0.8, 0.3, 1.0])
 
 
 @njit(cache=True, nogil=True)
