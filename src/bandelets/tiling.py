@@ -313,9 +313,12 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
     kind = options.kind
     tile_options = replace(options, progress=False, tile=grid.tile)
 
-    def coded(box, t: float, restore: bool, keep: bool) -> _Tile:
+    def coded(box, t: float, restore: bool, keep: bool, unrestored: _Tile | None) -> _Tile:
         tile = source[box]
-        encoded = encode_with_stats(tile, replace(tile_options, restore=restore), threshold=t, measured=keep)
+        earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
+        encoded = encode_with_stats(
+            tile, replace(tile_options, restore=restore), threshold=t, measured=keep, unrestored=earlier
+        )
         out = _Tile(encoded.data, encoded.coefficient_sse)
         if keep:
             reference, depth = _reference(tile, options)
@@ -326,20 +329,25 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
         return out
 
     with Progress(options.progress) as line:
-        passes = []
+        # The tiles of each pass without restoration (their bytes): the last pass restores and
+        # measures those of its threshold rather than coding them again.
+        passes: dict[float, list[_Tile]] = {}
 
         def encode_at(t: float, restore: bool, keep: bool) -> Encoded:
             line.stage(f"pass {len(passes) + 1}, T={t:.3g}: tiles", restart=True)
             t = max(t, MIN_THRESHOLD)
+            earlier = passes.get(t) if restore or keep else None
 
-            def one(box):
-                return coded(box, t, restore, keep)
+            def one(item):
+                box, unrestored = item
+                return coded(box, t, restore, keep, unrestored)
 
             tiles = []
-            for tile in thread_map(one, grid.boxes):
+            for tile in thread_map(one, zip(grid.boxes, earlier or [None] * len(grid.boxes), strict=True)):
                 tiles.append(tile)
                 line.step()
-            passes.append(t)
+            if not (restore or keep):
+                passes[t] = [_Tile(tile.data, tile.coefficient_sse) for tile in tiles]
             data = pack(grid, [tile.data for tile in tiles])
             result = Encoded(data, t, sum(tile.coefficient_sse for tile in tiles))
             if not keep:
