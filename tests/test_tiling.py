@@ -153,3 +153,18 @@ def test_the_last_pass_restores_the_tiles_already_coded_to_the_same_file(normals
     assert unpack(fresh.data)[0].restoration > 0
     assert again.data == fresh.data and again.psnr == fresh.psnr
     np.testing.assert_array_equal(again.decoded, fresh.decoded)
+
+
+def test_the_restoration_of_all_tiles_together_stays_within_max_work(normals):
+    # Each tile restores within its share of max_work (by its pixels), and the decoder refuses
+    # a file whose tiles together ask for more: not max_work once per tile.
+    from bandelets.memory import restoration_work
+
+    budget = 12 * (32 * 32 * 2 + 2**16) * 9  # about 12 iterations of every one of the 9 tiles
+    data = bandelets.encode(normals, threshold=0.003, kind="normal-map", tile=32, max_work=budget)
+    grid, tiles = tiling.read(data)
+    work = sum(restoration_work(tile()[0]) for tile in tiles)
+    assert 0 < work <= budget
+    assert bandelets.decode(data, max_work=work).shape == normals.shape
+    with pytest.raises(FormatError, match="max_work"):
+        bandelets.decode(data, max_work=work - 1)

@@ -211,11 +211,12 @@ def decode(
     """Decode a tiled .bdl file (see :func:`bandelets.decode`), only the tiles ``region``
     (``row, column, height, width``) touches when given, at most :data:`WORKERS` tiles at once.
 
-    ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds each tile's
-    restoration (a tile is a file of its own: the decoding time grows with the tile count).
+    ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds the restoration
+    of the tiles decoded, all together (:func:`bandelets.memory.restoration_work`), as it bounds
+    that of an image in one piece.
     """
     from .decoder import decode_parsed
-    from .memory import decoder_memory
+    from .memory import decoder_memory, restoration_work
     from .progress import Progress
 
     grid, tiles = read(data, **limits)
@@ -235,6 +236,12 @@ def decode(
     per_tile = max(
         decoder_memory(h.height, h.width, h.channels, h.levels, h.frames, h.restoration > 0) for h in headers
     )
+    work = sum(restoration_work(h) for h in headers)
+    if work > max_work:
+        raise FormatError(
+            f"restoring these {len(headers)} tiles is {work:.3g} sample-iterations of work, above the limit "
+            f"of {max_work:.3g} (max_work)"
+        )
     need = out_bytes + min(WORKERS, len(parsed)) * per_tile
     if need > max_memory:
         raise FormatError(
@@ -316,8 +323,15 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
     def coded(box, t: float, restore: bool, keep: bool, unrestored: _Tile | None) -> _Tile:
         tile = source[box]
         earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
+        # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
+        # as that of one piece is (and as the decoder checks it), not max_work once per tile.
+        share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
         encoded = encode_with_stats(
-            tile, replace(tile_options, restore=restore), threshold=t, measured=keep, unrestored=earlier
+            tile,
+            replace(tile_options, restore=restore, max_work=share),
+            threshold=t,
+            measured=keep,
+            unrestored=earlier,
         )
         out = _Tile(encoded.data, encoded.coefficient_sse)
         if keep:
