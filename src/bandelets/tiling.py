@@ -30,10 +30,14 @@ per pixel that of a 512 x 512 map, run on both cores (a thread per tile), and le
 decode only the tiles a region touches. Rate control stays global: every tile is coded at one
 threshold ``T`` (one quantizer and one Lagrangian slope everywhere, the rate-distortion optimal
 allocation among tiles), found by one search on the size or the quality of the whole image.
+The restoration of the whole file is bounded as that of one piece: each tile's encoder restores
+within its share of ``max_work`` (its share of the pixels), and the decoder refuses a file whose
+tiles together ask for more than ``max_work``.
 
-The tiles are coded independently: nothing crosses a tile border, so a border may show as a
-seam at low rates (measured in BENCHMARKS.md: the cost of tiling in dB against the untiled
-coder at 1024 x 1024).
+The tiles are coded independently: nothing crosses a tile border, and a smooth map pays for
+each border in bits (the wavelet transform extends a tile past it symmetrically, a kink where the
+surface has a slope: 15 % more bytes at one threshold for tiles of 512 on a smooth 1024 x 1024
+map, BENCHMARKS.md "What tiling costs").
 
 Written here: the container is ours, and the thread pool is the standard library's.
 """
