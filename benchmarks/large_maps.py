@@ -6,10 +6,11 @@ sampled), encoded at 1 bpp (rate control and the restoration search included, un
 ``--no-restore``), decoded (restoration as the file asks) and decoded without restoration; wall
 and process CPU time (all threads) of each, and the peak resident memory of the encode and of
 the decode (Linux: VmHWM, reset once the map, or the file, is made; imports and the map
-itself included; the decode's in a new process). ``--uint8`` holds the map as 8-bit samples,
-as read from a PNG (its float64 array alone is 1.5 GiB at 8192 x 8192). Maps are coded as the
-library's default does: in one piece when that fits the memory limit, in tiles of 512 above
-(:func:`bandelets.memory.tile_side`); ``--tile N`` for tiles at any size.
+itself included; the decode's in a new process), and the PSNR of the decoded map. ``--uint8``
+holds the map as 8-bit samples, as read from a PNG (its float64 array alone is 1.5 GiB at 8192
+x 8192). Maps are coded as the library's default does: in one piece when that fits the memory
+limit, in tiles of 512 above (:func:`bandelets.memory.tile_side`); ``--tile N`` for tiles at any
+size.
 
     python benchmarks/large_maps.py 4096 [--no-restore] [--uint8] [--tile 512]
 """
@@ -26,6 +27,7 @@ import imagecodecs
 import numpy as np
 
 import bandelets
+from bandelets.metrics import psnr
 from bandelets.samples import crease_normal_map
 from bandelets.tiling import header_of
 
@@ -95,6 +97,8 @@ def main() -> None:
     )
     enc_peak = _peak_mib()
     decoded, dec_s, dec_cpu = _timed(lambda: bandelets.decode(data))
+    # Not of --uint8 maps: their float64 copy is what that option avoids.
+    quality = float("nan") if args.uint8 else psnr(source, decoded, "normal-map")
     del decoded
     dec_peak = _decode_peak_mib(data)
     _, plain_s, plain_cpu = _timed(lambda: bandelets.decode(data, restore=False))
@@ -104,7 +108,7 @@ def main() -> None:
     lines = [
         f"{args.size} x {args.size} x 3 {'uint8' if args.uint8 else 'float64'}, 1 bpp"
         f"{', no restoration' if args.no_restore else ''}: {len(data)} bytes ({bpp:.3f} bpp), "
-        f"restoration up to {header.restoration} iterations a tile",
+        f"restoration up to {header.restoration} iterations a tile, PSNR {quality:.2f} dB",
         f"  encode {enc_s:.1f} s (CPU {enc_cpu:.1f} s, {enc_cpu * per_pixel:.2f} us/px, "
         f"peak RSS {enc_peak:.0f} MiB)",
         f"  decode {dec_s:.1f} s (CPU {dec_cpu:.1f} s, {dec_cpu * per_pixel:.2f} us/px, "

@@ -7,7 +7,11 @@ tile border against that of the other pixels, for both files (the untiled file's
 control: a seam shows as a tiled ratio above it). With ``--out``, the error maps (x 20, gray)
 around the centre of the tiled and untiled decodes are written as PNGs to look at.
 
+``--same-threshold`` codes both files at the threshold of the untiled one at each rate: what
+tiling costs in rate, the error being nearly the same.
+
     python benchmarks/tiling_cost.py [--size 1024] [--rates 0.25,1] [--tile 512] [--out DIR]
+        [--same-threshold]
 """
 
 from __future__ import annotations
@@ -19,7 +23,9 @@ import imagecodecs
 import numpy as np
 
 import bandelets
+from bandelets.encoder import encode_with_stats
 from bandelets.metrics import bits_per_pixel, psnr
+from bandelets.options import EncodeOptions
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.tiling import cuts
 
@@ -38,6 +44,11 @@ def main() -> None:
     parser.add_argument("--rates", default="0.25,1")
     parser.add_argument("--tile", type=int, default=512)
     parser.add_argument("--out", help="folder for the error maps around the centre")
+    parser.add_argument(
+        "--same-threshold",
+        action="store_true",
+        help="code both at the threshold of the untiled file of each rate (the tiled bpp is then the cost)",
+    )
     args = parser.parse_args()
     border = _border_mask(args.size, args.tile)
     print(
@@ -47,8 +58,12 @@ def main() -> None:
     for name, normals in (("crease", crease_normal_map(args.size)), ("bumps", bump_normal_map(args.size))):
         for rate in (float(r) for r in args.rates.split(",")):
             row, ratios = [], []
+            target = dict(bpp=rate)
+            if args.same_threshold:
+                untiled = EncodeOptions(kind="normal-map", tile=2 * args.size)
+                target = dict(threshold=encode_with_stats(normals, untiled, bpp=rate).threshold)
             for tile in (args.tile, 2 * args.size):
-                data = bandelets.encode(normals, bpp=rate, kind="normal-map", tile=tile)
+                data = bandelets.encode(normals, kind="normal-map", tile=tile, **target)
                 decoded = bandelets.decode(data)
                 error = np.sqrt(np.sum((decoded - normals) ** 2, axis=-1))
                 ratios.append(np.sqrt(np.mean(error[border] ** 2) / np.mean(error[~border] ** 2)))

@@ -1,4 +1,4 @@
-"""Tiled files (format version 9, :mod:`bandelets.tiling`): small tiles keep these tests fast."""
+"""Tiled files (format version 9 on, :mod:`bandelets.tiling`): small tiles keep these tests fast."""
 
 from __future__ import annotations
 
@@ -140,3 +140,31 @@ def test_by_default_only_what_does_not_fit_in_one_piece_is_tiled():
     tight = encoder_memory(2000, 40, 1) - 1  # one piece no longer fits: four tiles of TILE rows
     data = bandelets.encode(image, threshold=0.01, max_memory=tight)
     assert tiling.is_tiled(data) and len(tiling.read(data)[0].boxes) == 4
+
+
+def test_the_last_pass_restores_the_tiles_already_coded_to_the_same_file(normals):
+    # A tiled encode's last pass reads back each tile's file and restores it rather than coding
+    # the tile again: the same file and PSNR as coding it with the restoration.
+    options = EncodeOptions(kind="normal-map")
+    tile = normals[:48, :40]
+    plain = encode_with_stats(tile, EncodeOptions(kind="normal-map", restore=False), threshold=0.003)
+    fresh = encode_with_stats(tile, options, threshold=0.003, measured=True)
+    again = encode_with_stats(tile, options, threshold=0.003, measured=True, unrestored=plain)
+    assert unpack(fresh.data)[0].restoration > 0
+    assert again.data == fresh.data and again.psnr == fresh.psnr
+    np.testing.assert_array_equal(again.decoded, fresh.decoded)
+
+
+def test_the_restoration_of_all_tiles_together_stays_within_max_work(normals):
+    # Each tile restores within its share of max_work (by its pixels), and the decoder refuses
+    # a file whose tiles together ask for more: not max_work once per tile.
+    from bandelets.memory import restoration_work
+
+    budget = 12 * (32 * 32 * 2 + 2**16) * 9  # about 12 iterations of every one of the 9 tiles
+    data = bandelets.encode(normals, threshold=0.003, kind="normal-map", tile=32, max_work=budget)
+    grid, tiles = tiling.read(data)
+    work = sum(restoration_work(tile()[0]) for tile in tiles)
+    assert 0 < work <= budget
+    assert bandelets.decode(data, max_work=work).shape == normals.shape
+    with pytest.raises(FormatError, match="max_work"):
+        bandelets.decode(data, max_work=work - 1)

@@ -33,7 +33,7 @@ from .bitstream import (
     unpack,
 )
 from .coding import code_image, code_lifting, new_coders
-from .decoder import decode, decoded_image, restorations
+from .decoder import decode, decoded_bins, decoded_image, restorations
 from .files import as_read
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
@@ -291,11 +291,16 @@ def encode_with_stats(
     psnr: float | None = None,
     max_angle: float | None = None,
     measured: bool = False,
+    unrestored: Encoded | None = None,
 ) -> Encoded:
     """:func:`encode` with its options already validated, returning also the threshold used, the
     predicted error and (when the encoder chose the restoration, or ``measured``) the PSNR of the
     decoded file at the source's depth and what :func:`decode` returns for it (``measured``
-    costs a decode without the restoration)."""
+    costs a decode without the restoration).
+
+    ``unrestored``: what this function returned for the same array and options but no restoration,
+    at ``threshold``: the file is then only restored and measured, not coded again (a tiled
+    encode's last pass, :mod:`bandelets.tiling`)."""
     targets = dict(bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle)
     check_targets(options.kind, **targets)
     if options.wavelet == AUTO_WAVELET:
@@ -378,6 +383,8 @@ def encode_with_stats(
                 encoded, trees=None, bins=None, lifting=None, decoded=encoded.decoded if keep else None
             )
 
+        if unrestored is not None:
+            return finished(_read_back(unrestored))
         if threshold is not None:
             if lifting_levels:
                 coefficients, lifting = _lifted(coded, levels, lifting_levels, float(threshold))
@@ -422,6 +429,14 @@ def encode_with_stats(
         return ratecontrol.for_quality(
             lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label, MIN_THRESHOLD
         )
+
+
+def _read_back(encoded: Encoded) -> Encoded:
+    """``encoded`` with the header, quadtrees, bins and directions its file holds, as the decoder
+    reads them."""
+    header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
+    trees, bins, lifting = decoded_bins(header, streams)
+    return replace(encoded, header=header, trees=trees, bins=bins, lifting=lifting)
 
 
 def _lifted(coded: np.ndarray, levels: int, lifting_levels: int, threshold: float) -> tuple[list, list]:

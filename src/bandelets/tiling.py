@@ -30,10 +30,14 @@ per pixel that of a 512 x 512 map, run on both cores (a thread per tile), and le
 decode only the tiles a region touches. Rate control stays global: every tile is coded at one
 threshold ``T`` (one quantizer and one Lagrangian slope everywhere, the rate-distortion optimal
 allocation among tiles), found by one search on the size or the quality of the whole image.
+The restoration of the whole file is bounded as that of one piece: each tile's encoder restores
+within its share of ``max_work`` (its share of the pixels), and the decoder refuses a file whose
+tiles together ask for more than ``max_work``.
 
-The tiles are coded independently: nothing crosses a tile border, so a border may show as a
-seam at low rates (measured in BENCHMARKS.md: the cost of tiling in dB against the untiled
-coder at 1024 x 1024).
+The tiles are coded independently: nothing crosses a tile border, and a smooth map pays for
+each border in bits (the wavelet transform extends a tile past it symmetrically, a kink where the
+surface has a slope: 15 % more bytes at one threshold for tiles of 512 on a smooth 1024 x 1024
+map, BENCHMARKS.md "What tiling costs").
 
 Written here: the container is ours, and the thread pool is the standard library's.
 """
@@ -211,11 +215,12 @@ def decode(
     """Decode a tiled .bdl file (see :func:`bandelets.decode`), only the tiles ``region``
     (``row, column, height, width``) touches when given, at most :data:`WORKERS` tiles at once.
 
-    ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds each tile's
-    restoration (a tile is a file of its own: the decoding time grows with the tile count).
+    ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds the restoration
+    of the tiles decoded, all together (:func:`bandelets.memory.restoration_work`), as it bounds
+    that of an image in one piece.
     """
     from .decoder import decode_parsed
-    from .memory import decoder_memory
+    from .memory import decoder_memory, restoration_work
     from .progress import Progress
 
     grid, tiles = read(data, **limits)
@@ -235,6 +240,12 @@ def decode(
     per_tile = max(
         decoder_memory(h.height, h.width, h.channels, h.levels, h.frames, h.restoration > 0) for h in headers
     )
+    work = sum(restoration_work(h) for h in headers)
+    if work > max_work:
+        raise FormatError(
+            f"restoring these {len(headers)} tiles is {work:.3g} sample-iterations of work, above the limit "
+            f"of {max_work:.3g} (max_work)"
+        )
     need = out_bytes + min(WORKERS, len(parsed)) * per_tile
     if need > max_memory:
         raise FormatError(
@@ -313,9 +324,19 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
     kind = options.kind
     tile_options = replace(options, progress=False, tile=grid.tile)
 
-    def coded(box, t: float, restore: bool, keep: bool) -> _Tile:
+    def coded(box, t: float, restore: bool, keep: bool, unrestored: _Tile | None) -> _Tile:
         tile = source[box]
-        encoded = encode_with_stats(tile, replace(tile_options, restore=restore), threshold=t, measured=keep)
+        earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
+        # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
+        # as that of one piece is (and as the decoder checks it), not max_work once per tile.
+        share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
+        encoded = encode_with_stats(
+            tile,
+            replace(tile_options, restore=restore, max_work=share),
+            threshold=t,
+            measured=keep,
+            unrestored=earlier,
+        )
         out = _Tile(encoded.data, encoded.coefficient_sse)
         if keep:
             reference, depth = _reference(tile, options)
@@ -326,20 +347,25 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
         return out
 
     with Progress(options.progress) as line:
-        passes = []
+        # The tiles of each pass without restoration (their bytes): the last pass restores and
+        # measures those of its threshold rather than coding them again.
+        passes: dict[float, list[_Tile]] = {}
 
         def encode_at(t: float, restore: bool, keep: bool) -> Encoded:
             line.stage(f"pass {len(passes) + 1}, T={t:.3g}: tiles", restart=True)
             t = max(t, MIN_THRESHOLD)
+            earlier = passes.get(t) if restore or keep else None
 
-            def one(box):
-                return coded(box, t, restore, keep)
+            def one(item):
+                box, unrestored = item
+                return coded(box, t, restore, keep, unrestored)
 
             tiles = []
-            for tile in thread_map(one, grid.boxes):
+            for tile in thread_map(one, zip(grid.boxes, earlier or [None] * len(grid.boxes), strict=True)):
                 tiles.append(tile)
                 line.step()
-            passes.append(t)
+            if not (restore or keep):
+                passes[t] = [_Tile(tile.data, tile.coefficient_sse) for tile in tiles]
             data = pack(grid, [tile.data for tile in tiles])
             result = Encoded(data, t, sum(tile.coefficient_sse for tile in tiles))
             if not keep:
