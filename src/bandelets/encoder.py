@@ -380,7 +380,9 @@ def encode_with_stats(
 
         if threshold is not None:
             if lifting_levels:
-                coefficients, lifting = _lifted(coded, levels, lifting_levels, float(threshold))
+                coefficients, lifting, lifting_levels = _lifted(
+                    coded, coefficients, levels, lifting_levels, float(threshold)
+                )
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
         if bpp is not None:
@@ -393,7 +395,9 @@ def encode_with_stats(
             model = ratecontrol.size_model(magnitudes)
             if lifting_levels:
                 t_first = ratecontrol.first_threshold(target, t_max, model)
-                coefficients, lifting = _lifted(coded, levels, lifting_levels, t_first)
+                coefficients, lifting, lifting_levels = _lifted(
+                    coded, coefficients, levels, lifting_levels, t_first
+                )
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
@@ -417,17 +421,27 @@ def encode_with_stats(
                 return f"PSNR of {q:.2f} dB"
 
         if lifting_levels:
-            coefficients, lifting = _lifted(coded, levels, lifting_levels, t_guess)
+            coefficients, lifting, lifting_levels = _lifted(
+                coded, coefficients, levels, lifting_levels, t_guess
+            )
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
             lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label, MIN_THRESHOLD
         )
 
 
-def _lifted(coded: np.ndarray, levels: int, lifting_levels: int, threshold: float) -> tuple[list, list]:
-    """The coefficients of the (padded) channels of ``coded`` lifted along directions, and the
-    directions, chosen for ``threshold`` (:func:`bandelets.directional.analysis`)."""
-    return directional.analysis(padded_channels(coded, levels), levels, lifting_levels, threshold=threshold)
+def _lifted(
+    coded: np.ndarray, plain: list, levels: int, lifting_levels: int, threshold: float
+) -> tuple[list, list | None, int]:
+    """The coefficients of the (padded) channels of ``coded`` lifted along directions, the
+    directions, chosen for ``threshold`` (:func:`bandelets.directional.analysis`), and the levels
+    lifted; or, where the directions do not pay (:func:`bandelets.directional.pays`), the plain
+    coefficients ``plain``, None and 0."""
+    channels = padded_channels(coded, levels)
+    lifted, fields = directional.analysis(channels, levels, lifting_levels, threshold=threshold)
+    if directional.pays(channels, lifted, fields, levels, lifting_levels, threshold):
+        return lifted, fields, lifting_levels
+    return plain, None, 0
 
 
 def _lifting_levels(options: EncodeOptions, levels: int, geometry: dict) -> int:
