@@ -9,9 +9,10 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import directional, entropy
+from bandelets import directional, entropy, lifting
 from bandelets.bitstream import FormatError, pack, unpack
 from bandelets.metrics import psnr
+from bandelets.samples import bump_normal_map
 from bandelets.wavelets import wavedec
 
 
@@ -31,6 +32,49 @@ def test_plain_directions_are_the_cdf97_wavelet(rng):
     plain = [np.zeros(shape, np.int64) for shape in directional.field_shapes(x.shape, 2)]
     np.testing.assert_allclose(
         directional.analysis([x], 4, 2, plain)[0][0], wavedec(x, "cdf97", 4), atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("transposed", [False, True])
+def test_a_plain_directional_pass_is_the_cdf97_pass_to_the_last_bit(rng, transposed):
+    x = rng.normal(size=(24, 40))
+    source = x.T if transposed else x  # a column pass is handed transposes
+    codes = np.zeros((-(-source.shape[0] // 8), -(-source.shape[1] // 8)), np.int64)
+    plain, lifted = (np.empty(source.shape[::-1]).T if transposed else np.empty(source.shape) for _ in "ab")
+    lifting.cdf97_pass(source, plain, True)
+    lifting.directional_pass(source, lifted, True, codes, directional.OFFSETS, 8)
+    np.testing.assert_array_equal(lifted, plain)
+    back = np.empty(source.shape[::-1]).T if transposed else np.empty(source.shape)
+    lifting.directional_pass(lifted, back, False, codes, directional.OFFSETS, 8)
+    np.testing.assert_allclose(back, source, atol=1e-12)
+
+
+def test_direction_costs_count_the_high_pass_of_each_slope(rng):
+    x = rng.normal(size=(16, 32))
+    costs = lifting.direction_costs(x, directional.OFFSETS, 8, 0.5)
+    assert costs.shape == (len(directional.OFFSETS), 2, 4)
+    plain = np.empty_like(x)
+    lifting.cdf97_pass(x, plain, True)
+    d = plain[:, 16:] * lifting.ZETA  # before the final scaling
+    bits = np.log2(1.0 + 4.0 * np.abs(d)).reshape(2, 8, 4, 4).sum(axis=(1, 3))
+    np.testing.assert_allclose(costs[0], bits, rtol=1e-12)
+    # A pattern along slope 1 (rows per column step) costs least along it.
+    diagonal = np.subtract.outer(np.arange(16), np.arange(32)) % 4 < 2  # constant along r - c
+    slope_one = list(directional.OFFSETS).index(1.0)
+    assert np.all(
+        np.argmin(
+            lifting.direction_costs(diagonal.astype(float), directional.OFFSETS, 8, 0.5)[:, 1:, 1:-1], axis=0
+        )
+        == slope_one
+    )
+
+
+def test_lifting_falls_back_to_the_plain_wavelet_where_directions_do_not_pay(crease_map):
+    # The smooth bumps gain nothing from directions at a fine threshold; the creases do.
+    bumps = bump_normal_map(64)
+    assert unpack(bandelets.encode(bumps, threshold=0.001, kind="normal-map", lifting=True))[0].lifting == 0
+    assert (
+        unpack(bandelets.encode(crease_map, threshold=0.001, kind="normal-map", lifting=True))[0].lifting == 2
     )
 
 
