@@ -113,7 +113,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "--lifting",
         action="store_true",
         help="lift the two finest CDF 9/7 levels along directions chosen per block (better on creases at "
-        "an angle, about twice the decoding time)",
+        "an angle; kept only where the directions pay)",
     )
     p.add_argument(
         "--tile",

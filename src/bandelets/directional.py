@@ -18,8 +18,14 @@ starts from; the decoder reads them from the file (:func:`code_fields`). The coa
 are plain CDF 9/7, as :func:`bandelets.wavelets.wavedec` computes them, and every subband is
 normalised by the same synthesis norms, so the layout, the quantizer and the context coder are unchanged.
 
-Written here because no maintained library offers a direction-adaptive wavelet transform (the
-lifting kernels are numba loops like the rest of the codec's inner loops).
+The encoder keeps the directions only where they pay (:func:`pays`): on smooth maps (the
+generated bumps at 1 to 2 bpp) they cost up to 0.7 dB at the same rate, and the file is then
+coded with the plain wavelet (no directions, ``lifting`` 0 in its header).
+
+Written here because no maintained library offers a direction-adaptive wavelet transform. The
+passes are compiled, in place, as those of the plain CDF 9/7
+(:func:`bandelets.lifting.directional_pass`: a run of blocks of one slope along a line is lifted
+in one loop, so where every slope is 0 a pass costs what the plain one does).
 """
 
 from __future__ import annotations

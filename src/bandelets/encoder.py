@@ -220,7 +220,9 @@ def encode(
         Lift the finest :data:`bandelets.directional.LEVELS` wavelet levels along directions
         chosen per block (:mod:`bandelets.directional`; cdf97, not with local frames, not for a
         geometry image): better files on creases at an angle (+0.7 dB BD on the 256 x 256
-        crease map, +2.75 dB at 512), about twice the decoding time. Off by default.
+        crease map, +2.75 dB at 512) and about the same encoding and decoding time; the file
+        is coded without directions where they do not pay (:func:`bandelets.directional.pays`).
+        Off by default.
     progress : bool
         A progress line on stderr naming the stage (rate control, restoration search).
     max_memory : int
