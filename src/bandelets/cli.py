@@ -111,9 +111,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--lifting",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="lift the two finest CDF 9/7 levels along directions chosen per block (better on creases at "
-        "an angle; kept only where the directions pay)",
+        "an angle; kept only where the directions pay; default: on for normal maps coded as x, y)",
     )
     p.add_argument(
         "--tile",
