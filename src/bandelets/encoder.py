@@ -220,10 +220,10 @@ def encode(
         Lift the finest :data:`bandelets.directional.LEVELS` wavelet levels along directions
         chosen per block (:mod:`bandelets.directional`; cdf97, not with local frames, not for a
         geometry image): better files on creases at an angle (+0.8 dB BD on the 256 x 256
-        crease map, +2.7 dB at 512) in about the same encoding and decoding time; the file
-        is coded without directions where they do not pay (:func:`bandelets.directional.pays`).
-        None (the default): on for normal maps coded as x, y with cdf97, off otherwise; True
-        where it cannot apply is an error.
+        crease map, +2.7 dB at 512) in about the same encoding and decoding time.
+        None (the default): on for normal maps coded as x, y with cdf97 where the directions
+        pay (:func:`bandelets.directional.pays`; else the file is coded without them), off
+        otherwise. True: always (an error where it cannot apply); False: never.
     progress : bool
         A progress line on stderr naming the stage (rate control, restoration search).
     max_memory : int
@@ -384,7 +384,7 @@ def encode_with_stats(
         if threshold is not None:
             if lifting_levels:
                 coefficients, lifting, lifting_levels = _lifted(
-                    coded, coefficients, levels, lifting_levels, float(threshold)
+                    coded, coefficients, levels, lifting_levels, float(threshold), options.lifting is None
                 )
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
@@ -399,7 +399,7 @@ def encode_with_stats(
             if lifting_levels:
                 t_first = ratecontrol.first_threshold(target, t_max, model)
                 coefficients, lifting, lifting_levels = _lifted(
-                    coded, coefficients, levels, lifting_levels, t_first
+                    coded, coefficients, levels, lifting_levels, t_first, options.lifting is None
                 )
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
@@ -425,7 +425,7 @@ def encode_with_stats(
 
         if lifting_levels:
             coefficients, lifting, lifting_levels = _lifted(
-                coded, coefficients, levels, lifting_levels, t_guess
+                coded, coefficients, levels, lifting_levels, t_guess, options.lifting is None
             )
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
@@ -434,15 +434,15 @@ def encode_with_stats(
 
 
 def _lifted(
-    coded: np.ndarray, plain: list, levels: int, lifting_levels: int, threshold: float
+    coded: np.ndarray, plain: list, levels: int, lifting_levels: int, threshold: float, check: bool
 ) -> tuple[list, list | None, int]:
     """The coefficients of the (padded) channels of ``coded`` lifted along directions, the
     directions, chosen for ``threshold`` (:func:`bandelets.directional.analysis`), and the levels
-    lifted; or, where the directions do not pay (:func:`bandelets.directional.pays`), the plain
-    coefficients ``plain``, None and 0."""
+    lifted; or, with ``check``, where the directions do not pay
+    (:func:`bandelets.directional.pays`), the plain coefficients ``plain``, None and 0."""
     channels = padded_channels(coded, levels)
     lifted, fields = directional.analysis(channels, levels, lifting_levels, threshold=threshold)
-    if directional.pays(channels, lifted, fields, levels, lifting_levels, threshold):
+    if not check or directional.pays(channels, lifted, fields, levels, lifting_levels, threshold):
         return lifted, fields, lifting_levels
     return plain, None, 0
 
