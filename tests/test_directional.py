@@ -133,6 +133,21 @@ def test_normal_maps_are_lifted_on_request(crease_map):
     assert unpack(bandelets.encode(crease[..., 0], threshold=0.01, restore=False))[0].lifting == 0
 
 
+def test_three_channel_normal_maps_are_lifted_in_local_frames():
+    v, u = np.mgrid[0:32, 0:32] / 31.0
+    theta, phi = np.pi * (0.15 + 0.7 * v), 2.5 * u + 0.4 * np.sign(u - 0.45)  # z < 0 on half
+    x = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+    data = {
+        lifting: bandelets.encode(x, threshold=0.02, kind="normal-map", lifting=lifting, restore=False)
+        for lifting in (True, False)
+    }
+    header = unpack(data[True])[0]
+    assert (header.channels, header.frames, header.lifting) == (3, True, directional.LEVELS)
+    quality = {k: psnr(x, bandelets.decode(d), "normal-map") for k, d in data.items()}
+    assert abs(quality[True] - quality[False]) < 1.0
+    assert quality[True] > 40
+
+
 def test_lifting_where_it_cannot_apply_is_refused(crease_map, edge_image):
     with pytest.raises(ValueError, match="directional lifting"):
         bandelets.encode(crease_map, threshold=0.01, kind="normal-map", wavelet="haar", lifting=True)

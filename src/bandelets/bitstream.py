@@ -40,7 +40,8 @@ options. Version 9 projects the restoration into the bins every
 :data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, changed the
 coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contexts, the sign's
 upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
-files of one tile, :mod:`bandelets.tiling`). This build reads version 9 only.
+files of one tile, :mod:`bandelets.tiling`). Version 10 lets a normal map coded with its three
+channels (in local frames) be lifted along directions. This build reads version 10 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -117,7 +118,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 9
+FORMAT_VERSION = 10
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -367,11 +368,7 @@ def unpack(
         (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (
-            lifting == 0
-            or (
-                wavelet == "cdf97"
-                and not (kind == "geometry-image" or channels == 3 and kind == "normal-map")
-            ),
+            lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
         ),
         (

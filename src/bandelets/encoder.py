@@ -442,20 +442,16 @@ def _lifted(
     (:func:`bandelets.directional.pays`), the plain coefficients ``plain``, None and 0."""
     channels = padded_channels(coded, levels)
     lifted, fields = directional.analysis(channels, levels, lifting_levels, threshold=threshold)
-    if not check or directional.pays(channels, lifted, fields, levels, lifting_levels, threshold):
+    frames = len(channels) == 3  # a normal map's three channels are coded in local frames
+    if not check or directional.pays(channels, lifted, fields, levels, lifting_levels, threshold, frames):
         return lifted, fields, lifting_levels
     return plain, None, 0
 
 
 def _lifting_levels(options: EncodeOptions, levels: int, geometry: dict) -> int:
     """Wavelet levels to lift along directions for ``options.lifting`` (see :func:`encode`)."""
-    frames = geometry.get("frames", False)
-    if options.lifting and frames:
-        raise ValueError(
-            "directional lifting cannot be combined with local frames (normal maps facing every way)"
-        )
-    if options.lifting is None:  # the default: normal maps coded as x, y with CDF 9/7
-        wanted = options.kind == "normal-map" and not frames and options.wavelet == "cdf97"
+    if options.lifting is None:  # the default: normal maps with CDF 9/7
+        wanted = options.kind == "normal-map" and options.wavelet == "cdf97"
     else:
         wanted = options.lifting
     return min(directional.LEVELS, levels) if wanted else 0
