@@ -114,7 +114,7 @@ def _build_parser() -> argparse.ArgumentParser:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="lift the two finest CDF 9/7 levels along directions chosen per block (better on creases at "
-        "an angle; default: on for normal maps coded as x, y where the directions pay)",
+        "an angle; default: on for normal maps where the directions pay)",
     )
     p.add_argument(
         "--tile",

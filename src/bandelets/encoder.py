@@ -218,11 +218,11 @@ def encode(
         iteration for 256 x 256 x 2, 6.5 ms for 512 x 512 x 2).
     lifting : bool, optional
         Lift the finest :data:`bandelets.directional.LEVELS` wavelet levels along directions
-        chosen per block (:mod:`bandelets.directional`; cdf97, not with local frames, not for a
-        geometry image): better files on creases at an angle (+0.8 dB BD on the 256 x 256
-        crease map, +2.7 dB at 512) in about the same encoding and decoding time.
-        None (the default): on for normal maps coded as x, y with cdf97 where the directions
-        pay (:func:`bandelets.directional.pays`; else the file is coded without them), off
+        chosen per block (:mod:`bandelets.directional`; cdf97, not for a geometry image):
+        better files on creases at an angle (+0.66 dB BD on the 256 x 256 crease map, +2.63 dB
+        at 512, +0.72 dB on fandisk's normal map) in about the same encoding and decoding time.
+        None (the default): on for normal maps with cdf97 where the directions pay
+        (:func:`bandelets.directional.pays`; else the file is coded without them), off
         otherwise. True: always (an error where it cannot apply); False: never.
     progress : bool
         A progress line on stderr naming the stage (rate control, restoration search).
