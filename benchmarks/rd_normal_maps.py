@@ -11,10 +11,10 @@ one file per codec, written under ``OUT/MAP/`` and read back; every bpp is ``8 x
 pixels`` of that file and every PSNR that of the vectors it decodes to, renormalised, against
 the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). The codecs:
 
-* ``lifting``: ``bandelets encode --kind normal-map --bpp B --lifting``, the defaults (CDF 9/7,
-  bandelets, restoration) with the two finest levels lifted along directions;
-* ``bandelet``: the defaults;
-* ``wavelet``: the same coder without any geometry (``--transform wavelet``);
+* ``lifting``: ``bandelets encode --kind normal-map --bpp B``, the defaults (CDF 9/7, bandelets,
+  restoration, the two finest levels lifted along directions where they pay);
+* ``bandelet``: the defaults without the directional lifting (``--no-lifting``);
+* ``wavelet``: the same coder without any geometry (``--transform wavelet --no-lifting``);
 * the anchors as :mod:`bandelets.anchors` drives them (8-bit samples, as the PNG): OpenJPEG,
   libavif (4:4:4, identity matrix, speed 2), libjxl (effort 9).
 
@@ -46,9 +46,9 @@ RATES = (0.25, 0.35, 0.5, 0.71, 1.0, 1.41, 2.0)
 #: Maps whose blue channel is not Z (X and Y only).
 XY_MAPS = ("acacia_door_bottom_n.png",)
 OURS = {
-    "lifting": {"lifting": True},
-    "bandelet": {},
-    "wavelet": {"transform": "wavelet"},
+    "lifting": {},
+    "bandelet": {"lifting": False},
+    "wavelet": {"transform": "wavelet", "lifting": False},
 }
 CODECS = (*OURS, "jpeg2000", "avif", "jpegxl")
 SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map}

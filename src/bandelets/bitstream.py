@@ -42,8 +42,9 @@ coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contex
 upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
 files of one tile, :mod:`bandelets.tiling`). Version 10 gave the 1D bandelet coefficients
 contexts of their own (:mod:`bandelets.squarecontexts`: what the sibling and parent subbands
-hold around the square, and the signs of the two channels' coefficients square by square). This
-build reads version 10 only.
+hold around the square, and the signs of the two channels' coefficients square by square), and
+lets a normal map coded with its three channels (in local frames) be lifted along directions.
+This build reads version 10 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -370,11 +371,7 @@ def unpack(
         (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (
-            lifting == 0
-            or (
-                wavelet == "cdf97"
-                and not (kind == "geometry-image" or channels == 3 and kind == "normal-map")
-            ),
+            lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
         ),
         (

@@ -111,9 +111,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--lifting",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="lift the two finest CDF 9/7 levels along directions chosen per block (better on creases at "
-        "an angle, about twice the decoding time)",
+        "an angle; default: on for normal maps where the directions pay)",
     )
     p.add_argument(
         "--tile",

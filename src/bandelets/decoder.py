@@ -185,10 +185,10 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
 
     # In place, channel by channel: no copy of the image.
     def analysis(x: np.ndarray) -> np.ndarray:  # overwrites x
+        c = x
         if lifting is not None:
-            c = np.array(directional.analysis(x, levels, header.lifting, lifting)[0])
+            each(lambda k: directional.transform(x[k], levels, header.lifting, lifting), range(len(c)))
         else:
-            c = x
             each(lambda k: wavedec(x[k], *args, out=x[k]), range(len(c)))
         if level_frames is not None:
             frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=True)
@@ -200,10 +200,12 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
         if level_frames is not None:
             frames.rotate_levels(list(c), level_frames, levels, header.normal_weight, local=False)
         if lifting is not None:
-            return np.array(
-                each(lambda channel: directional.synthesis(channel, levels, header.lifting, lifting), c)
+            each(
+                lambda k: directional.transform(c[k], levels, header.lifting, lifting, inverse=True),
+                range(len(c)),
             )
-        each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
+        else:
+            each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
         return c
 
     return analysis, synthesis

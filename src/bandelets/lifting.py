@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["cdf97_pass", "haar_pass", "scale_subbands"]
+__all__ = ["cdf97_pass", "directional_pass", "haar_pass", "scale_subbands"]
 
 # Lifting factorisation of the CDF 9/7 filter pair (Daubechies and Sweldens 1998).
 ALPHA = -1.586134342059924
@@ -132,6 +132,160 @@ def _lift(x, forward, by_lines, spherical, first, second, weight, h):
             edge = _after(x, n, spherical, first, second, weight, h)
         # Minus the factor: x - c y and x + (-c) y are the same number.
         _step(x, factors[k] if forward else -factors[k], odd, edge, by_lines)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _line_at(lines, pos):
+    """Lines ``i, i + 1`` and weight ``f`` of the linear interpolation at line ``pos`` of
+    ``lines``, mirrored at the ends."""
+    if pos < 0.0:
+        pos = -pos
+    if pos > lines - 1:
+        pos = max(2.0 * (lines - 1) - pos, 0.0)
+    i = int(pos)
+    if i >= lines - 1:
+        return lines - 1, lines - 1, 0.0
+    return i, i + 1, pos - i
+
+
+@njit(cache=True, nogil=True)
+def _lift_along(x, forward, by_lines, codes, slopes, block, steps):
+    """The first ``steps`` lifting steps of CDF 9/7 (or of its inverse), in place on ``x`` (split
+    layout, ``n`` per half), each block of ``block`` lines and ``block // 2`` samples reading the
+    other half along its slope ``slopes[codes[a, b]]`` (lines per sample).
+
+    A step adds ``c (u + v)`` to each sample, ``u`` and ``v`` its two neighbours on the other half
+    (predict: ``s[k]``, ``s[k + 1]`` to ``d[k]``; update: ``d[k - 1]``, ``d[k]`` to ``s[k]``;
+    mirrored at the line's ends) read at lines ``r - slope`` and ``r + slope``, linearly
+    interpolated between lines (mirrored at the first and last). The blocks of a run of one
+    slope along a line (along memory, in a column pass) are lifted together.
+    """
+    lines, n = x.shape[0], x.shape[1] // 2
+    width = block // 2
+    factors = (ALPHA, BETA, GAMMA, DELTA)
+    for step in range(steps):
+        k = step if forward else 3 - step
+        c = factors[k] if forward else -factors[k]
+        predict = k % 2 == 0
+        target, source, shift = (n, 0, 1) if predict else (0, n, -1)
+        if by_lines:  # runs along the lines
+            for a in range(codes.shape[0]):
+                b = 0
+                while b < codes.shape[1]:
+                    end = b + 1
+                    while end < codes.shape[1] and codes[a, end] == codes[a, b]:
+                        end += 1
+                    top, bottom = a * block, min((a + 1) * block, lines)
+                    left, right = b * width, min(end * width, n)
+                    _lift_run(
+                        x, top, bottom, left, right, slopes[codes[a, b]], c, target, source, shift, True
+                    )
+                    b = end
+        else:  # runs across the lines, along memory
+            for b in range(codes.shape[1]):
+                a = 0
+                while a < codes.shape[0]:
+                    end = a + 1
+                    while end < codes.shape[0] and codes[end, b] == codes[a, b]:
+                        end += 1
+                    top, bottom = a * block, min(end * block, lines)
+                    left, right = b * width, min((b + 1) * width, n)
+                    _lift_run(
+                        x, top, bottom, left, right, slopes[codes[a, b]], c, target, source, shift, False
+                    )
+                    a = end
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lift_run(x, top, bottom, left, right, slope, c, target, source, shift, by_lines):
+    """One step of :func:`_lift_along` on lines ``top:bottom``, samples ``left:right``, one slope."""
+    lines, n = x.shape[0], x.shape[1] // 2
+    # The neighbour at the line's end (predict: the last ``s``; update: the first ``d``) is mirrored.
+    edge = n - 1 if shift == 1 else 0
+    inner_left, inner_right = (left, min(right, n - 1)) if shift == 1 else (max(left, 1), right)
+    if slope == 0.0:
+        if by_lines:
+            for r in range(top, bottom):
+                for j in range(inner_left, inner_right):
+                    x[r, target + j] += c * (x[r, source + j] + x[r, source + j + shift])
+        else:
+            for j in range(inner_left, inner_right):
+                for r in range(top, bottom):
+                    x[r, target + j] += c * (x[r, source + j] + x[r, source + j + shift])
+        if left <= edge < right:
+            for r in range(top, bottom):
+                x[r, target + edge] += c * (x[r, source + edge] + x[r, source + edge])
+        return
+    for r in range(top, bottom):
+        u0, u1, f = _line_at(lines, r - slope)
+        v0, v1, g = _line_at(lines, r + slope)
+        for j in range(left, right):
+            # Predict: s[k] before, s[k + 1] after; update: d[k - 1] before, d[k] after.
+            p = source + (j if shift == 1 else max(j - 1, 0))
+            q = source + (min(j + 1, n - 1) if shift == 1 else j)
+            before = x[u0, p] + f * (x[u1, p] - x[u0, p])
+            after = x[v0, q] + g * (x[v1, q] - x[v0, q])
+            x[r, target + j] += c * (before + after)
+
+
+@njit(cache=True, nogil=True)
+def _high_pass_bits(x, block, threshold, costs):
+    """Add ``log2(1 + 2 |d| / T)`` of every high-pass sample ``d`` of ``x`` (split layout) to
+    ``costs`` of its block (see :func:`directional_pass`)."""
+    lines, n = x.shape[0], x.shape[1] // 2
+    width = block // 2
+    scale = 2.0 / threshold
+    for r in range(lines):
+        for j in range(n):
+            costs[r // block, j // width] += np.log2(1.0 + abs(x[r, n + j]) * scale)
+
+
+def directional_pass(
+    source: np.ndarray, target: np.ndarray, forward: bool, codes: np.ndarray, slopes: np.ndarray, block: int
+) -> None:
+    """One CDF 9/7 pass as :func:`cdf97_pass` (whole-sample symmetric extension), each lifting step
+    reading the other half of the line along a slope per block (:mod:`bandelets.directional`).
+
+    Parameters
+    ----------
+    source, target : ndarray of float64, shape (lines, 2n)
+        As :func:`cdf97_pass`.
+    forward : bool
+    codes : ndarray of int64, shape (ceil(lines / block), ceil(n / (block // 2)))
+        Slope code of every block of ``block`` lines and ``block // 2`` samples of each half.
+    slopes : ndarray of float64
+        Slope of every code, in lines per sample; 0 reads straight across as :func:`cdf97_pass`
+        (the same numbers).
+    block : int
+        Lines of a block (even).
+    """
+    by_lines = _by_lines(source)
+    if forward:
+        _split(source, target, by_lines, False)
+        _lift_along(target, True, by_lines, codes, slopes, block, 4)
+        _normalise(target, by_lines, True)
+    else:
+        _normalise(source, by_lines, False)
+        _lift_along(source, False, by_lines, codes, slopes, block, 4)
+        _merge(source, target, by_lines, False)
+
+
+def direction_costs(source: np.ndarray, slopes: np.ndarray, block: int, threshold: float) -> np.ndarray:
+    """``costs[i, a, b]``: the sum of ``log2(1 + 2 |d| / T)`` over the high-pass samples ``d``
+    (before the final scaling) of block ``a, b`` of :func:`directional_pass` of ``source`` with
+    slope ``slopes[i]`` everywhere, ``T`` = ``threshold``."""
+    lines, n = source.shape[0], source.shape[1] // 2
+    split = np.empty((lines, 2 * n))
+    _split(source, split, _by_lines(source), False)
+    shape = (-(-lines // block), -(-n // (block // 2)))
+    costs = np.zeros((len(slopes), *shape))
+    trial = np.empty_like(split)
+    for i in range(len(slopes)):
+        trial[...] = split
+        # The high-pass samples are final after the third step.
+        _lift_along(trial, True, True, np.full(shape, i, np.int64), slopes, block, 3)
+        _high_pass_bits(trial, block, threshold, costs[i])
+    return costs
 
 
 @njit(cache=True, nogil=True, inline="always")

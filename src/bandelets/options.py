@@ -78,7 +78,7 @@ class EncodeOptions:
     normal_weight: float = DEFAULT_NORMAL_WEIGHT
     extension: str = "symmetric"
     restore: bool = True
-    lifting: bool = False
+    lifting: bool | None = None
     progress: bool = False
     max_memory: int = MAX_MEMORY
     xy: bool = False

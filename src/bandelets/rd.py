@@ -161,9 +161,17 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
 def _encode(source: Source, codec: str, rate: float) -> bytes:
     if codec in anchors.ANCHORS:
         return anchors.encode(source.array, rate, codec, source.kind, source.depth)
-    # The encoder picks the better of CDF 9/7 and Haar for each point (encoder.AUTO_CANDIDATES).
+    # The encoder picks the better of CDF 9/7 and Haar for each point (encoder.AUTO_CANDIDATES);
+    # "wavelet" is the same coder without any geometry: no directional lifting either.
+    lifting = None if codec == "bandelet" else False
     return encode(
-        source.array, bpp=rate, transform=codec, kind=source.kind, depth=source.depth, wavelet="auto"
+        source.array,
+        bpp=rate,
+        transform=codec,
+        kind=source.kind,
+        depth=source.depth,
+        wavelet="auto",
+        lifting=lifting,
     )
 
 

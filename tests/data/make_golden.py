@@ -73,6 +73,10 @@ GOLDEN = {
         facing_away_16,
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet"},
     ),
+    "facing16-lifted.bdl": (
+        facing_away_16,
+        {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
+    ),
     "geometry32.bdl": (
         geometry_image_32,
         {"threshold": 0.002, "kind": "geometry-image", "transform": "wavelet"},
