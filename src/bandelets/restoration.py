@@ -118,7 +118,6 @@ def penalty_gradient(
     second_order: float = 0.0,
     second_edge: float = 1.0,
     out: np.ndarray | None = None,
-    work: np.ndarray | None = None,
 ) -> np.ndarray:
     """Gradient of the restoration penalty: a vectorial log total variation
     ``sum edge log(1 + n / edge)``, where ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every
@@ -140,8 +139,6 @@ def penalty_gradient(
         >= 0; 0 leaves the second-order term out.
     out : ndarray, shape (C, H, W), float64, row-major, optional
         Where to write the gradient (not ``x``).
-    work : ndarray, shape (5, H + 4, W), float64, row-major, optional
-        Scratch space (the restoration passes the same one at every iteration).
 
     Notes
     -----
@@ -154,34 +151,28 @@ def penalty_gradient(
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty_like(x) if out is None else out
-    rows, cols = x.shape[1:]
-    work = np.empty((5, rows + 4, cols)) if work is None else work
-    constants = float(smoothing), float(edge), float(second_order), float(second_edge)
-    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
-        _gradient(tuple(x), *constants, tuple(out), tuple(work[:, :rows]), 0, rows)
-        return out
-    # Two halves of the rows, each with the two rows past its cut that its stencils reach (done
-    # twice, on its own scratch rows): every sample is the same sum as in one piece. Channels and
-    # scratch planes go in as tuples of row ranges, which stay contiguous (a 3D slice would not).
-    half = rows // 2
-    future = _pool().submit(
-        _gradient,
-        tuple(x[:, half - 2 :]),
-        *constants,
-        tuple(out[:, half - 2 :]),
-        tuple(work[:, half + 2 :]),
-        2,
-        rows - half + 2,
-    )
-    _gradient(
-        tuple(x[:, : half + 2]), *constants, tuple(out[:, : half + 2]), tuple(work[:, : half + 2]), 0, half
-    )
-    future.result()
+    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0)
     return out
 
 
+def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) -> None:
+    """:func:`_rows` over all the rows of ``x``: in two threads, a half of the rows each, from
+    :data:`THREADED_SAMPLES` pixels on (each row is the same numbers whichever thread computes it)."""
+    rows, cols = x.shape[1:]
+    smoothing, edge, second_order, second_edge = (float(c) for c in constants)
+    args = (x, smoothing, edge, second_order, second_edge, float(step), out, previous, float(weight))
+    unit = (int(unit_rows), int(unit_cols))
+    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
+        _rows(*args, *unit, 0, rows)
+        return
+    half = rows // 2
+    future = _pool().submit(_rows, *args, *unit, half, rows)
+    _rows(*args, *unit, 0, half)
+    future.result()
+
+
 def _pool() -> ThreadPoolExecutor:
-    """The thread that computes the second half of the penalty's gradient (one for the process)."""
+    """The thread that computes the second half of the rows (one for the process)."""
     global _POOL
     with _POOL_LOCK:
         if _POOL is None:
@@ -199,129 +190,151 @@ def _log_weight(squared_norm, smoothing, edge):
     return edge / (n * (edge + n))
 
 
-@njit(cache=True, nogil=True)
-def _gradient(x, smoothing, edge, second_order, second_edge, out, work, start, stop):
-    """:func:`penalty_gradient` into the rows ``start`` to ``stop`` of ``out`` (the others are left
-    untouched). The weights of every pixel first, then, channel by
-    channel, what each pixel's second differences spread to its neighbours, then every sample
-    gathers its terms: the same numbers, added in the same order, as a scatter of each pixel's
-    stencil over the pixels in row-major order, without a branch inside the image."""
-    inverse, w, a, b, d = work[0], work[1], work[2], work[3], work[4]
-    _first_weights(x, smoothing, edge, inverse)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rows(
+    x, smoothing, edge, second_order, second_edge, step, out, previous, weight, unit_rows, unit_cols, start, stop
+):
+    """The rows ``start`` to ``stop`` of the penalty's gradient at ``x`` (``step`` < 0), or of a whole
+    iteration (``step`` >= 0): ``out = x - step gradient``, brought to unit length on the first
+    ``unit_rows`` rows and ``unit_cols`` columns, then (``weight`` >= 0) ``previous = out + weight
+    (out - previous)``, in place; other rows of ``out`` and ``previous`` are left untouched.
+
+    One pass over the image: what a row's stencils reach in the rows above and below (the weighted
+    differences, :func:`_row_terms`) is made a row ahead into rings of four rows, so what they read
+    and write stays in the cache. Every sample is the same numbers, added in the same order, as a
+    scatter of each pixel's stencil over the pixels in row-major order, whatever ``start`` and
+    ``stop`` (the rows past them are made again, not shared), and without a branch inside the
+    image."""
+    channels, rows, cols = x.shape
+    ring = np.empty((5, channels, 4, cols))
+    px, py, a, b, d = ring[0], ring[1], ring[2], ring[3], ring[4]
+    s, w = np.empty(cols), np.empty(cols)
     second = second_order > 0.0
-    if second:
-        _second_weights(x, smoothing, second_order, second_edge, w)
-    for c in range(len(x)):
-        if second:
-            _second_terms(x[c], w, a, b, d)
-        _divergence(x[c], inverse, a, b, d, second, out[c], start, stop)
+    for r in range(max(start - 1, 0), min(start + 1, rows)):
+        _row_terms(x, r, smoothing, edge, second_order, second_edge, second, s, w, px, py, a, b, d)
+    for i in range(start, stop):
+        if i + 1 < rows:
+            _row_terms(x, i + 1, smoothing, edge, second_order, second_edge, second, s, w, px, py, a, b, d)
+        for c in range(channels):
+            _divergence_row(i, rows, px[c], py[c], a[c], b[c], d[c], second, out[c, i])
+        if step < 0.0:
+            continue
+        for c in range(channels):
+            v, o = x[c, i], out[c, i]
+            for j in range(cols):
+                o[j] = v[j] - o[j] * step
+        if i < unit_rows:
+            _to_unit_length(out, i, unit_cols)
+        if weight >= 0.0:
+            for c in range(channels):
+                o, p = out[c, i], previous[c, i]
+                for j in range(cols):
+                    p[j] = (o[j] - p[j]) * weight + o[j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_terms(x, r, smoothing, edge, second_order, second_edge, second, s, w, px, py, a, b, d):
+    """Row ``r`` (into the ring row ``r % 4``), channel by channel, of the forward differences (0 past
+    the end) times the weight of the joint gradient, ``px`` and ``py``, and, with ``second``, of what
+    each pixel's second differences spread to its neighbours: ``a = w xx``, ``b = w yy``,
+    ``d = 2 w xy``, with ``w`` ``second_order`` times the weight of the joint second differences.
+    ``s`` and ``w``: scratch rows."""
+    channels, rows, cols = x.shape
+    k = r % 4
+    s[:] = 0.0
+    for c in range(channels):
+        v, dx, dy = x[c], px[c, k], py[c, k]
+        if r + 1 < rows:
+            for j in range(cols - 1):
+                dx[j] = v[r, j + 1] - v[r, j]
+                dy[j] = v[r + 1, j] - v[r, j]
+                s[j] += dx[j] * dx[j] + dy[j] * dy[j]
+            dy[cols - 1] = v[r + 1, cols - 1] - v[r, cols - 1]
+            s[cols - 1] += dy[cols - 1] * dy[cols - 1]  # dx * dx + dy * dy with dx = 0: the same number
+        else:
+            for j in range(cols - 1):
+                dx[j] = v[r, j + 1] - v[r, j]
+                s[j] += dx[j] * dx[j]
+    for j in range(cols):
+        s[j] = _log_weight(s[j], smoothing, edge)
+    for c in range(channels):
+        dx, dy = px[c, k], py[c, k]
+        for j in range(cols):
+            dx[j] *= s[j]
+            dy[j] *= s[j]
+    if not second:
+        return
+    w[:] = 0.0
+    inside = 0 < r < rows - 1
+    for c in range(channels):
+        v, xx, yy, xy = x[c], a[c, k], b[c, k], d[c, k]
+        if inside:
+            for j in range(1, cols - 1):
+                xx[j], yy[j], xy[j] = _second_differences(v, r, j, True)
+                w[j] += xx[j] * xx[j] + yy[j] * yy[j] + 2.0 * xy[j] * xy[j]
+        # The border pixels of the row (all of them on the first and last rows).
+        for j in range(0, cols, max(cols - 1, 1) if inside else 1):
+            xx[j], yy[j], xy[j] = _second_differences(v, r, j, False)
+            w[j] += xx[j] * xx[j] + yy[j] * yy[j] + 2.0 * xy[j] * xy[j]
+    for j in range(cols):
+        w[j] = second_order * _log_weight(w[j], smoothing, second_edge)
+    for c in range(channels):
+        xx, yy, xy = a[c, k], b[c, k], d[c, k]
+        for j in range(cols):
+            xx[j] *= w[j]
+            yy[j] *= w[j]
+            xy[j] *= 2.0 * w[j]
 
 
 @njit(cache=True, nogil=True)
-def _divergence(v, inverse, a, b, d, second, out, start, stop):
-    """The gradient of the channel ``v`` on the rows ``start`` to ``stop`` (see :func:`_gradient`)."""
-    rows, cols = v.shape
-    for i in range(start, stop):
-        border = i == 0 or i == rows - 1
-        for j in range(0, cols, 1 if border else max(cols - 1, 1)):
-            out[i, j] = _pixel(v, inverse, a, b, d, i, j, second, False)
-        if border:
-            continue
-        # Inside, a loop the compiler vectorises (the flags are constants there).
-        if second:
-            for j in range(1, cols - 1):
-                out[i, j] = _pixel(v, inverse, a, b, d, i, j, True, True)
-        else:
-            for j in range(1, cols - 1):
-                out[i, j] = _pixel(v, inverse, a, b, d, i, j, False, True)
+def _divergence_row(i, rows, px, py, a, b, d, second, out):
+    """Row ``i`` of the gradient of one channel into ``out``, from its rings of four rows (see
+    :func:`_rows`)."""
+    cols = out.shape[0]
+    up, here, down = (i - 1) % 4, i % 4, (i + 1) % 4
+    border = i == 0 or i == rows - 1
+    for j in range(0, cols, 1 if border else max(cols - 1, 1)):
+        out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, False)
+    if border:
+        return
+    # Inside, a loop the compiler vectorises (the flags are constants there).
+    if second:
+        for j in range(1, cols - 1):
+            out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, True, True)
+    else:
+        for j in range(1, cols - 1):
+            out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, False, True)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _pixel(v, inverse, a, b, d, i, j, second, inside):
-    """Minus the divergence of the weighted gradient at pixel ``(i, j)`` of the channel ``v``, then
-    (``second``) the terms of the second differences whose stencils reach it, from the pixels
-    ``(i - 1, j - 1)``, ``(i - 1, j)``, ``(i, j - 1)``, itself, ``(i, j + 1)``, ``(i + 1, j)`` in that
-    order; ``inside``: ``(i, j)`` is not on the border."""
-    rows, cols = v.shape
+def _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, inside):
+    """Minus the divergence of the weighted gradient at pixel ``(i, j)``, then (``second``) the terms
+    of the second differences whose stencils reach it, from the pixels ``(i - 1, j - 1)``,
+    ``(i - 1, j)``, ``(i, j - 1)``, itself, ``(i, j + 1)``, ``(i + 1, j)`` in that order; ``up``,
+    ``here``, ``down``: the ring rows of ``i - 1``, ``i``, ``i + 1``; ``inside``: ``(i, j)`` is not on
+    the border."""
     g = 0.0
     if inside or j + 1 < cols:
-        g -= (v[i, j + 1] - v[i, j]) * inverse[i, j]
+        g -= px[here, j]
     if inside or j > 0:
-        g += (v[i, j] - v[i, j - 1]) * inverse[i, j - 1]
+        g += px[here, j - 1]
     if inside or i + 1 < rows:
-        g -= (v[i + 1, j] - v[i, j]) * inverse[i, j]
+        g -= py[here, j]
     if inside or i > 0:
-        g += (v[i, j] - v[i - 1, j]) * inverse[i - 1, j]
+        g += py[up, j]
     if second:
         if inside or (i > 0 and j > 0):
-            g += d[i - 1, j - 1]
+            g += d[up, j - 1]
         if inside or i > 0:
-            g += b[i - 1, j] - d[i - 1, j]
+            g += b[up, j] - d[up, j]
         if inside or j > 0:
-            g += a[i, j - 1] - d[i, j - 1]
-        g += d[i, j] - 2.0 * (a[i, j] + b[i, j])
+            g += a[here, j - 1] - d[here, j - 1]
+        g += d[here, j] - 2.0 * (a[here, j] + b[here, j])
         if inside or j + 1 < cols:
-            g += a[i, j + 1]
+            g += a[here, j + 1]
         if inside or i + 1 < rows:
-            g += b[i + 1, j]
+            g += b[down, j]
     return g
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _first_weights(x, smoothing, edge, inverse):
-    """The weight of the joint gradient at every pixel (forward differences, 0 past the end)."""
-    channels, (rows, cols) = len(x), x[0].shape
-    s = np.empty(cols)
-    for i in range(rows):
-        s[:] = 0.0
-        for c in range(channels):
-            v = x[c]
-            if i + 1 < rows:
-                for j in range(cols - 1):
-                    dx = v[i, j + 1] - v[i, j]
-                    dy = v[i + 1, j] - v[i, j]
-                    s[j] += dx * dx + dy * dy
-                dy = v[i + 1, cols - 1] - v[i, cols - 1]
-                s[cols - 1] += dy * dy  # dx * dx + dy * dy with dx = 0: the same number
-            else:
-                for j in range(cols - 1):
-                    dx = v[i, j + 1] - v[i, j]
-                    s[j] += dx * dx
-        for j in range(cols):
-            inverse[i, j] = _log_weight(s[j], smoothing, edge)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _second_weights(x, smoothing, weight, edge, w):
-    """``weight`` times the weight of the joint second differences at every pixel."""
-    channels, (rows, cols) = len(x), x[0].shape
-    s = np.empty(cols)
-    for i in range(rows):
-        s[:] = 0.0
-        for c in range(channels):
-            v = x[c]
-            if 0 < i < rows - 1:
-                for j in range(1, cols - 1):
-                    xx, yy, xy = _second_differences(v, i, j, True)
-                    s[j] += xx * xx + yy * yy + 2.0 * xy * xy
-            # The border pixels of the row (all of them on the first and last rows).
-            for j in range(0, cols, max(cols - 1, 1) if 0 < i < rows - 1 else 1):
-                xx, yy, xy = _second_differences(v, i, j, False)
-                s[j] += xx * xx + yy * yy + 2.0 * xy * xy
-        for j in range(cols):
-            w[i, j] = weight * _log_weight(s[j], smoothing, edge)
-
-
-@njit(cache=True, nogil=True)
-def _second_terms(v, w, a, b, d):
-    """What pixel ``(i, j)`` of the channel ``v`` spreads to its neighbours: ``a = w xx``,
-    ``b = w yy``, ``d = 2 w xy``."""
-    rows, cols = v.shape
-    for i in range(rows):
-        inside = 0 < i < rows - 1
-        for j in range(cols):
-            xx, yy, xy = _second_differences(v, i, j, inside and 0 < j < cols - 1)
-            a[i, j], b[i, j], d[i, j] = w[i, j] * xx, w[i, j] * yy, 2.0 * w[i, j] * xy
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -334,6 +347,21 @@ def _second_differences(x, i, j, inside):
     fits = inside or (i + 1 < rows and j + 1 < cols)
     xy = x[i + 1, j + 1] - x[i + 1, j] - x[i, j + 1] + x[i, j] if fits else 0.0
     return xx, yy, xy
+
+
+@njit(cache=True, nogil=True)
+def _to_unit_length(x, i, cols):
+    """Vectors ``x[:, i, j]`` of the row ``i``, first ``cols`` columns, to unit length, in place
+    (those shorter than :data:`_SHORTEST` left as they are)."""
+    for j in range(cols):
+        s = 0.0
+        for k in range(x.shape[0]):
+            s += x[k, i, j] * x[k, i, j]
+        norm = np.sqrt(s)
+        if norm > _SHORTEST:
+            scale = 1.0 / max(norm, _SHORTEST)
+            for k in range(x.shape[0]):
+                x[k, i, j] *= scale
 
 
 def iterate(
@@ -374,53 +402,30 @@ def iterate(
     # Nesterov's momentum (as in FISTA): each step starts from the last estimate pushed further
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
     ahead, t = x.copy(), 1.0
-    # Two images, the step and the penalty's scratch space: allocated once, not at every iteration.
-    step, work = np.empty_like(x), np.empty((5, x.shape[1] + 4, x.shape[2]))
+    # Where each step writes (the three images swap roles): allocated once, not at every iteration.
+    spare = np.empty_like(x)
     constants = (SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold)
+    unit = (0, 0) if unit_vectors is None else unit_vectors
     for k in count(1):
-        penalty_gradient(ahead, *constants, out=step, work=work)
-        _descend(ahead.reshape(-1), step.reshape(-1), STEP * threshold)
-        if unit_vectors is not None:
-            _to_unit_length(ahead, *unit_vectors)
-        new = ahead
-        if k % PROJECT_EVERY == 0:
-            c = analysis(ahead)  # may overwrite ahead
+        t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
+        weight = (t - 1.0) / t_next
+        project = k % PROJECT_EVERY == 0
+        # The step, and unless it projects, the momentum into x: one pass over the image.
+        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit)
+        new = spare
+        if project:
+            c = analysis(spare)  # may overwrite spare
             for channel, bins in zip(c, q, strict=True):
                 clip_into_bins(channel, bins, threshold)
             new = np.ascontiguousarray(synthesis(c))  # flat views below
-        t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
-        _extrapolate(new.reshape(-1), x.reshape(-1), (t - 1.0) / t_next)
-        ahead, x, t = x, new, t_next
+            _extrapolate(new.reshape(-1), x.reshape(-1), weight)
+        ahead, x, spare, t = x, new, ahead, t_next
         yield x
-
-
-@njit(cache=True, nogil=True)
-def _descend(x, gradient, step):
-    """``x -= step * gradient``, in place (flat arrays): one pass over memory, not two, and the same
-    numbers as ``gradient *= step; x -= gradient``."""
-    for i in range(x.shape[0]):
-        x[i] = x[i] - gradient[i] * step
 
 
 @njit(cache=True, nogil=True)
 def _extrapolate(new, x, weight):
     """``x = new + weight (new - x)``, in place in ``x`` (flat arrays), with the rounding of
-    ``np.subtract(new, x, out=x); x *= weight; x += new``."""
+    :func:`_rows`."""
     for i in range(x.shape[0]):
         x[i] = (new[i] - x[i]) * weight + new[i]
-
-
-@njit(cache=True, nogil=True)
-def _to_unit_length(x, rows, cols):
-    """Vectors ``x[:, i, j]`` of the first ``rows`` rows and ``cols`` columns to unit length, in
-    place (those shorter than :data:`_SHORTEST` left as they are)."""
-    for i in range(rows):
-        for j in range(cols):
-            s = 0.0
-            for k in range(x.shape[0]):
-                s += x[k, i, j] * x[k, i, j]
-            norm = np.sqrt(s)
-            if norm > _SHORTEST:
-                scale = 1.0 / max(norm, _SHORTEST)
-                for k in range(x.shape[0]):
-                    x[k, i, j] *= scale
