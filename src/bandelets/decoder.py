@@ -211,7 +211,7 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
 
 def decoded_image(channels, header: Header) -> np.ndarray:
     """What :func:`decode` returns, from the decoded (padded) channels."""
-    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
+    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1, dtype=np.float64)
     if not np.all(np.isfinite(out)):
         raise FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":
