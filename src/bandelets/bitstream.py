@@ -40,7 +40,11 @@ options. Version 9 projects the restoration into the bins every
 :data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, changed the
 coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contexts, the sign's
 upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
-files of one tile, :mod:`bandelets.tiling`). This build reads version 9 only.
+files of one tile, :mod:`bandelets.tiling`). Version 10 computes the restoration's gradient in
+float32 (the steps' images too, where the samples' scale allows:
+:data:`bandelets.restoration.SINGLE_UP_TO`), which changes the restored images in their last
+digits, and its encoder writes the fewest iterations that keep 97 % of the restoration's best gain
+(:data:`bandelets.encoder.RESTORATION_SHARE`). This build reads version 10 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
@@ -117,7 +121,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 9
+FORMAT_VERSION = 10
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
