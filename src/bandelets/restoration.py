@@ -41,6 +41,17 @@ step, +4.04 / +0.48 / +2.41 every 5, +4.02 / +0.48 / +2.27 every 10, +3.91 / +0.
 +3.74 / +0.47 / - never). A larger step with it, 0.015 T, takes 20 % fewer iterations but
 loses 0.1 dB on the crease map (+3.89 / +0.47 / +2.31 dB): not taken.
 
+An iteration is one pass over the image (format version 10, :func:`_rows`): the differences of a
+row, their weights and what its stencils spread to the rows above and below are made a row ahead
+into rings of four rows that stay in the cache, in float32 and in units of the smoothing (the
+gradient is the same when the samples and the constants are scaled together, so float32 meets
+neither overflow nor underflow whatever the threshold), and the step, the renormalisation and the
+momentum follow row by row; the images between the steps are float32 where the samples are small
+against ``T`` (:data:`SINGLE_UP_TO`). The restored images differ from version 9's in their last
+digits only (+4.12 / +0.49 dB on crease / bumps either way, ``benchmarks/restoration_gain.py``),
+in 0.7 times the CPU time at 512 x 512 for as many iterations (BENCHMARKS.md, "Decoder-side
+restoration").
+
 Written here (compiled loops for the gradient, the steps, the renormalisation and the projection
 into the bins) because no library offers such a reconstruction constrained in an arbitrary (here
 bandelet) basis: scikit-image's and scipy's total-variation denoisers solve the unconstrained
@@ -60,7 +71,6 @@ only where it ends, is what the encoder's choice of the count regularises.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -110,8 +120,9 @@ SINGLE_UP_TO = 2.0**14
 _LARGEST = 1e15
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
-#: Pixels from which :func:`penalty_gradient` computes its two halves in two threads: at 128^2 x 3
-#: already 0.29 ms against 0.36 in one, at 512^2 2.9 ms against 5.0 (2-core machine).
+#: Pixels from which an iteration (and :func:`penalty_gradient`) computes the two halves of the rows
+#: in two threads: with format version 9's kernel at 128^2 x 3 already 0.29 ms against 0.36 in one,
+#: at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
 _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 _POOL: ThreadPoolExecutor | None = None
@@ -151,8 +162,9 @@ def penalty_gradient(
 
     Notes
     -----
-    From :data:`THREADED_SAMPLES` pixels on, the two halves of the rows are computed in two
-    threads (the same numbers as in one).
+    Computed in float32 (relative precision about 1e-7), in units of ``smoothing``. From
+    :data:`THREADED_SAMPLES` pixels on, the two halves of the rows are computed in two threads
+    (the same numbers as in one).
 
     Returns
     -------
@@ -210,7 +222,19 @@ def _scaled(difference, scale):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _rows(
-    x, smoothing, edge, second_order, second_edge, step, out, previous, weight, unit_rows, unit_cols, start, stop
+    x,
+    smoothing,
+    edge,
+    second_order,
+    second_edge,
+    step,
+    out,
+    previous,
+    weight,
+    unit_rows,
+    unit_cols,
+    start,
+    stop,
 ):
     """The rows ``start`` to ``stop`` of the penalty's gradient at ``x`` (``step`` < 0), or of a whole
     iteration (``step`` >= 0): ``out = x - step gradient``, brought to unit length on the first
