@@ -110,9 +110,10 @@ SECOND_EDGE = 0.5
 #: Iterations per projection into the bins (the others take the penalty's step alone).
 PROJECT_EVERY = 10
 #: The images the steps make are float32 (half the memory each step reads and writes) where the
-#: samples' largest magnitude is at most this many times ``T`` (and far within float32's range):
-#: their rounding, at most ``T / 2**10``, stays far below the moves of a step (a hundredth of
-#: ``T``); float64 otherwise (extreme thresholds, large values).
+#: samples' largest magnitude is at most this many times ``T``, with ``T`` from 2**-64 to 2**64
+#: (far within float32's range, differences and step included): their rounding, at most
+#: ``T / 2**10``, stays far below the moves of a step (a hundredth of ``T``); float64 otherwise
+#: (extreme thresholds, large values).
 SINGLE_UP_TO = 2.0**14
 #: Largest difference, in units of the smoothing, that the penalty's float32 arithmetic takes (larger
 #: ones are clamped to it: a crease whatever its height, weighted about 0): squared and summed over
@@ -184,7 +185,10 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) 
     # In units of the smoothing (the gradient does not change when x and the constants are scaled
     # together): the float32 arithmetic meets neither overflow nor underflow, whatever the threshold.
     scaled = (np.float32(edge / smoothing), np.float32(second_order), np.float32(second_edge / smoothing))
-    args = (x, smoothing, *scaled, float(step), out, previous, float(weight), int(unit_rows), int(unit_cols))
+    # The differences and the step in the images' type (float32 images: twice the samples to a vector).
+    real = x.dtype.type
+    args = (x, real(1.0 / smoothing), real(_LARGEST), *scaled, real(step), out, previous, real(weight))
+    args = (*args, int(unit_rows), int(unit_cols))
     if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
         _rows(*args, 0, rows)
         return
@@ -211,19 +215,20 @@ def _log_weight(squared_norm, edge):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _scaled(difference, scale):
+def _scaled(difference, scale, largest):
     """A difference in units of the smoothing (``scale`` is its inverse), as a float32 of at most
     :data:`_LARGEST`."""
     d = difference * scale
-    d = _LARGEST if d > _LARGEST else d
-    d = -_LARGEST if d < -_LARGEST else d
+    d = largest if d > largest else d
+    d = -largest if d < -largest else d
     return np.float32(d)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _rows(
     x,
-    smoothing,
+    scale,
+    largest,
     edge,
     second_order,
     second_edge,
@@ -240,25 +245,25 @@ def _rows(
     iteration (``step`` >= 0): ``out = x - step gradient``, brought to unit length on the first
     ``unit_rows`` rows and ``unit_cols`` columns, then (``weight`` >= 0) ``previous = out + weight
     (out - previous)``, in place; other rows of ``out`` and ``previous`` are left untouched.
-    ``edge``, ``second_order``, ``second_edge``: float32, the first and last in units of
-    ``smoothing``.
+    ``scale``: the inverse of the smoothing, ``largest``: :data:`_LARGEST`, ``step``, ``weight``:
+    of the type of ``x``; ``edge``, ``second_order``, ``second_edge``: float32, the first and last
+    in units of the smoothing.
 
     One pass over the image: what a row's stencils reach in the rows above and below (the weighted
     differences, :func:`_row_terms`) is made a row ahead into rings of four rows, so what they read
-    and write stays in the cache. The samples and the step are float64, the differences, their
-    weights and the gradient float32 (half the width of a vector register: twice the pixels per
-    instruction; a relative precision of 6e-8 on the gradient, which only moves the samples by a
-    hundredth of the threshold per step). Every sample is the same numbers, added in the same
-    order, whatever ``start`` and ``stop`` (the rows past them are made again, not shared), and
-    without a branch inside the image."""
+    and write stays in the cache. The differences, their weights and the gradient are float32 (twice
+    the pixels per instruction of float64; a relative precision of 6e-8 on the gradient, which
+    moves the samples by a hundredth of the threshold per step), the step of the type of ``x``.
+    Every sample is the same numbers, added in the same order, whatever ``start`` and ``stop`` (the
+    rows past them are made again, not shared), and without a branch inside the image."""
     channels, rows, cols = x.shape
     ring = np.empty((6, channels, 4, cols), np.float32)
     px, py, a, b, d, dy = ring[0], ring[1], ring[2], ring[3], ring[4], ring[5]
     s, w, g = np.empty(cols, np.float32), np.empty(cols, np.float32), np.empty((channels, cols), np.float32)
-    constants = (1.0 / smoothing, edge, second_order, second_edge, second_order > 0.0)
+    constants = (scale, largest, edge, second_order, second_edge, second_order > 0.0)
     first = max(start - 1, 0)
     if first > 0:  # the row above the first one made, for its second differences
-        _vertical(x, first - 1, constants[0], dy[:, (first - 1) % 4])
+        _vertical(x, first - 1, scale, largest, dy[:, (first - 1) % 4])
     for r in range(first, min(start + 1, rows)):
         _row_terms(x, r, *constants, s, w, px, py, a, b, d, dy)
     for i in range(start, stop):
@@ -284,25 +289,25 @@ def _rows(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _row_terms(x, r, scale, edge, second_order, second_edge, second, s, w, px, py, a, b, d, dy):
+def _row_terms(x, r, scale, largest, edge, second_order, second_edge, second, s, w, px, py, a, b, d, dy):
     """Row ``r`` (into the ring row ``r % 4``), channel by channel, of the forward differences (0 past
     the end) times the weight of the joint gradient, ``px`` and ``py``, and, with ``second``, of what
     each pixel's second differences spread to its neighbours: ``a = w xx``, ``b = w yy``,
     ``d = 2 w xy``, with ``w`` ``second_order`` times the weight of the joint second differences.
-    In units of the smoothing (``scale``: its inverse); ``dy``: the vertical differences, which
-    need to be there for the row above (:func:`_vertical`); ``s`` and ``w``: scratch rows. Loops
-    that each write one row, which the compiler vectorises.
+    In units of the smoothing (``scale``: its inverse; at most ``largest``); ``dy``: the vertical
+    differences, which need to be there for the row above (:func:`_vertical`); ``s`` and ``w``:
+    scratch rows. Loops that each write one row, which the compiler vectorises.
 
     The second differences are differences of the first ones (in float32: their error, 6e-8 times
     the slope, is far below the smoothing wherever the second-order term has a say); ``a`` holds
     the row's ``dx`` until ``xx`` replaces it."""
     channels, rows, cols = x.shape
     k = r % 4
-    _vertical(x, r, scale, dy[:, k])
+    _vertical(x, r, scale, largest, dy[:, k])
     for c in range(channels):
         here, dx = x[c, r], a[c, k]
         for j in range(cols - 1):
-            dx[j] = _scaled(here[j + 1] - here[j], scale)
+            dx[j] = _scaled(here[j + 1] - here[j], scale, largest)
         dx[cols - 1] = 0.0
     s[:] = 0.0
     for c in range(channels):
@@ -351,13 +356,13 @@ def _row_terms(x, r, scale, edge, second_order, second_edge, second, s, w, px, p
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _vertical(x, r, scale, dy):
+def _vertical(x, r, scale, largest, dy):
     """``dy[c] = x[c, r + 1] - x[c, r]`` in units of the smoothing (0 on the last row)."""
     channels, rows, cols = x.shape
     for c in range(channels):
         here, below, out = x[c, r], x[c, min(r + 1, rows - 1)], dy[c]
         for j in range(cols):
-            out[j] = _scaled(below[j] - here[j], scale)
+            out[j] = _scaled(below[j] - here[j], scale, largest)
 
 
 @njit(cache=True, nogil=True)
@@ -467,7 +472,8 @@ def iterate(
     # Nesterov's momentum (as in FISTA): each step starts from the last estimate pushed further
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
     largest = float(np.max(np.abs(x)))
-    dtype = np.float32 if largest <= min(SINGLE_UP_TO * threshold, 2.0**64) else np.float64
+    single = largest <= SINGLE_UP_TO * threshold and 2.0**-64 <= threshold <= 2.0**64
+    dtype = np.float32 if single else np.float64
     with np.errstate(under="ignore"):  # float32: what is below its range is 0
         x = x.astype(dtype)
     ahead, t = x.copy(), 1.0
@@ -488,7 +494,7 @@ def iterate(
                 clip_into_bins(channel, bins, threshold)
             with np.errstate(under="ignore"):
                 new = np.ascontiguousarray(synthesis(c), dtype=dtype)  # flat views below
-            _extrapolate(new.reshape(-1), x.reshape(-1), weight)
+            _extrapolate(new.reshape(-1), x.reshape(-1), x.dtype.type(weight))
         ahead, x, spare, t = x, new, ahead, t_next
         yield x
 
