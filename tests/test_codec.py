@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from conftest import straight_edge
@@ -414,7 +416,8 @@ def test_progress_line_names_every_stage(crease_map, capsys, monkeypatch):
     bandelets.encode(crease_map, psnr=40, kind="normal-map", progress=True)
     err = capsys.readouterr().err
     assert "rate control: " in err and "restoration search: " in err and "T=" in err
-    assert "rate control: 3" in err  # counted across the restoration searches
+    # Counted across the restoration searches (two or more tries here): not reset by each.
+    assert max(int(n) for n in re.findall(r"rate control: (\d+)", err)) >= 2
     bandelets.encode(crease_map, psnr=40, kind="normal-map")
     assert capsys.readouterr().err == ""
 

@@ -192,7 +192,7 @@ def test_files_with_local_frames_are_restored_in_their_frames():
     np.testing.assert_array_equal(decoder.decoded_image(next(steps), header), bandelets.decode(data))
     for _ in range(restoration.PROJECT_EVERY):  # a step that projects into the bins
         x = next(steps)
-    c = analysis(x)
+    c = analysis(x.astype(np.float64))  # the steps' images are float32 here
     for k, q in enumerate(quantized):
         low, high = bin_bounds(q, header.threshold)
         assert np.all((c[k] >= low - 1e-9) & (c[k] <= high + 1e-9))
@@ -232,3 +232,35 @@ def test_the_encoders_measure_is_the_psnr_of_the_decoded_image(crease_map, facin
     for _, channels in zip(range(3), decoder.restorations(header, trees, quantized, lifting), strict=False):
         decoded = metrics.psnr(normals, decoder.decoded_image(channels, header), "normal-map")
         assert measure(channels) == pytest.approx(decoded, abs=1e-9)
+
+
+@pytest.mark.parametrize("scale, dtype", [(1.0, np.float32), (1e6, np.float64)])
+def test_the_steps_images_are_float32_where_the_scale_allows(edge_image, scale, dtype):
+    """float32 between the steps where the samples are at most SINGLE_UP_TO T (their rounding far
+    below a step's moves), float64 otherwise; the first image is float64 either way."""
+    t = 0.05
+
+    def analysis(x):
+        return wavedec(np.asarray(x[0], np.float64), "db4", 3)[None]
+
+    def synthesis(c):
+        return waverec(c[0], "db4", 3)[None]
+
+    q = quantize(analysis(scale * edge_image[None])[0], t)
+    steps = restoration.iterate([q], t, analysis, synthesis)
+    assert next(steps).dtype == np.float64
+    assert next(steps).dtype == dtype
+
+
+def test_the_encoder_writes_the_fewest_iterations_that_keep_the_share(crease_map):
+    """Not the best count: the first that keeps RESTORATION_SHARE of the best gain."""
+    data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map", restore=False)
+    header, streams = unpack(data)
+    trees, quantized, lifting = decoder.decoded_bins(header, streams)
+    measure = metrics.psnr_of_channels(crease_map, "normal-map")
+    steps = decoder.restorations(header, trees, quantized, lifting)
+    scores = np.array([measure(next(steps)) for _ in range(80)])
+    gains = scores - scores[0]
+    chosen = unpack(bandelets.encode(crease_map, bpp=1.0, kind="normal-map"))[0].restoration
+    assert 0 < chosen < np.argmax(gains)
+    assert gains[chosen] >= encoder.RESTORATION_SHARE * gains.max() > gains[chosen - 1]

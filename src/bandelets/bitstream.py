@@ -42,9 +42,12 @@ coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contex
 upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
 files of one tile, :mod:`bandelets.tiling`). Version 10 gave the 1D bandelet coefficients
 contexts of their own (:mod:`bandelets.squarecontexts`: what the sibling and parent subbands
-hold around the square, and the signs of the two channels' coefficients square by square), and
-lets a normal map coded with its three channels (in local frames) be lifted along directions.
-This build reads version 10 only.
+hold around the square, and the signs of the two channels' coefficients square by square), let a
+normal map coded with its three channels (in local frames) be lifted along directions, computes
+the restoration's gradient in float32 (the steps' images too, where the samples' scale allows:
+:data:`bandelets.restoration.SINGLE_UP_TO`), and has its encoder write the fewest restoration
+iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`). This
+build reads version 10 only.
 
 The layout of a normal map's source, which the decoder returns (no effect on the coding):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which

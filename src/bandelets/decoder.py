@@ -220,7 +220,7 @@ def decoded_image(channels, header: Header) -> np.ndarray:
             raise overflow
         # Returned in the layout the source had (bandelets.bitstream.LAYOUTS).
         return out[..., :2] if header.layout == "xy" else out
-    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1)
+    out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1, dtype=np.float64)
     if not np.all(np.isfinite(out)):
         raise overflow
     return out[..., 0] if header.channels == 1 else out

@@ -198,6 +198,7 @@ def psnr_of_channels(
     planes = np.ascontiguousarray(np.moveaxis(reference, -1, 0))
 
     def measure(channels: np.ndarray) -> float:
+        channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
         rmse = float(
             np.sqrt(_normal_map_sse(planes, channels, 2**depth - 1 if depth else 0) / reference.size)
         )

@@ -27,8 +27,9 @@ crease map, 0.6 dB more on fandisk's normal map and 0.3 dB more on the bumps
 first term alone, ``--second-order 0 --edge 1e9`` for the total variation).
 
 How many steps is the encoder's choice: it runs the same iterations, measures the error
-against the original after each, and writes the best count into the file (0: off, e.g. on
-smooth surfaces, where there is nothing to sharpen). It costs no bits and, since the encoder
+against the original after each, and writes into the file the fewest iterations that keep 97 %
+of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`, format version 10; 0: off, e.g.
+on smooth surfaces, where there is nothing to sharpen). It costs no bits and, since the encoder
 measures before it chooses, never decodes worse than plain dequantization.
 
 The projection into the bins (an analysis and a synthesis of every channel, two thirds of an
@@ -40,6 +41,17 @@ restoration on crease / bumps / fandisk normals: +3.99 / +0.48 / +2.28 dB projec
 step, +4.04 / +0.48 / +2.41 every 5, +4.02 / +0.48 / +2.27 every 10, +3.91 / +0.48 / - every 20,
 +3.74 / +0.47 / - never). A larger step with it, 0.015 T, takes 20 % fewer iterations but
 loses 0.1 dB on the crease map (+3.89 / +0.47 / +2.31 dB): not taken.
+
+An iteration is one pass over the image (format version 10, :func:`_rows`): the differences of a
+row, their weights and what its stencils spread to the rows above and below are made a row ahead
+into rings of four rows that stay in the cache, in float32 and in units of the smoothing (the
+gradient is the same when the samples and the constants are scaled together, so float32 meets
+neither overflow nor underflow whatever the threshold), and the step, the renormalisation and the
+momentum follow row by row; the images between the steps are float32 where the samples are small
+against ``T`` (:data:`SINGLE_UP_TO`). The restored images differ from version 9's in their last
+digits only (+4.12 / +0.49 dB on crease / bumps either way, ``benchmarks/restoration_gain.py``),
+in 0.7 times the CPU time at 512 x 512 for as many iterations (BENCHMARKS.md, "Decoder-side
+restoration").
 
 Written here (compiled loops for the gradient, the steps, the renormalisation and the projection
 into the bins) because no library offers such a reconstruction constrained in an arbitrary (here
@@ -60,7 +72,6 @@ only where it ends, is what the encoder's choice of the count regularises.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -99,10 +110,21 @@ SECOND_ORDER = 0.25
 SECOND_EDGE = 0.5
 #: Iterations per projection into the bins (the others take the penalty's step alone).
 PROJECT_EVERY = 10
+#: The images the steps make are float32 (half the memory each step reads and writes) where the
+#: samples' largest magnitude is at most this many times ``T``, with ``T`` from 2**-64 to 2**64
+#: (far within float32's range, differences and step included): their rounding, at most
+#: ``T / 2**10``, stays far below the moves of a step (a hundredth of ``T``); float64 otherwise
+#: (extreme thresholds, large values).
+SINGLE_UP_TO = 2.0**14
+#: Largest difference, in units of the smoothing, that the penalty's float32 arithmetic takes (larger
+#: ones are clamped to it: a crease whatever its height, weighted about 0): squared and summed over
+#: the channels, it stays far below float32's largest value.
+_LARGEST = 1e15
 #: Below this length a vector is left as it is rather than blown up to unit length.
 _SHORTEST = 1e-6
-#: Pixels from which :func:`penalty_gradient` computes its two halves in two threads: at 128^2 x 3
-#: already 0.29 ms against 0.36 in one, at 512^2 2.9 ms against 5.0 (2-core machine).
+#: Pixels from which an iteration (and :func:`penalty_gradient`) computes the two halves of the rows
+#: in two threads: with format version 9's kernel at 128^2 x 3 already 0.29 ms against 0.36 in one,
+#: at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
 _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 _POOL: ThreadPoolExecutor | None = None
@@ -118,7 +140,6 @@ def penalty_gradient(
     second_order: float = 0.0,
     second_edge: float = 1.0,
     out: np.ndarray | None = None,
-    work: np.ndarray | None = None,
 ) -> np.ndarray:
     """Gradient of the restoration penalty: a vectorial log total variation
     ``sum edge log(1 + n / edge)``, where ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every
@@ -140,13 +161,12 @@ def penalty_gradient(
         >= 0; 0 leaves the second-order term out.
     out : ndarray, shape (C, H, W), float64, row-major, optional
         Where to write the gradient (not ``x``).
-    work : ndarray, shape (5, H + 4, W), float64, row-major, optional
-        Scratch space (the restoration passes the same one at every iteration).
 
     Notes
     -----
-    From :data:`THREADED_SAMPLES` pixels on, the two halves of the rows are computed in two
-    threads (the same numbers as in one).
+    Computed in float32 (relative precision about 1e-7), in units of ``smoothing``. From
+    :data:`THREADED_SAMPLES` pixels on, the two halves of the rows are computed in two threads
+    (the same numbers as in one).
 
     Returns
     -------
@@ -154,34 +174,33 @@ def penalty_gradient(
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty_like(x) if out is None else out
-    rows, cols = x.shape[1:]
-    work = np.empty((5, rows + 4, cols)) if work is None else work
-    constants = float(smoothing), float(edge), float(second_order), float(second_edge)
-    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
-        _gradient(tuple(x), *constants, tuple(out), tuple(work[:, :rows]), 0, rows)
-        return out
-    # Two halves of the rows, each with the two rows past its cut that its stencils reach (done
-    # twice, on its own scratch rows): every sample is the same sum as in one piece. Channels and
-    # scratch planes go in as tuples of row ranges, which stay contiguous (a 3D slice would not).
-    half = rows // 2
-    future = _pool().submit(
-        _gradient,
-        tuple(x[:, half - 2 :]),
-        *constants,
-        tuple(out[:, half - 2 :]),
-        tuple(work[:, half + 2 :]),
-        2,
-        rows - half + 2,
-    )
-    _gradient(
-        tuple(x[:, : half + 2]), *constants, tuple(out[:, : half + 2]), tuple(work[:, : half + 2]), 0, half
-    )
-    future.result()
+    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0)
     return out
 
 
+def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) -> None:
+    """:func:`_rows` over all the rows of ``x``: in two threads, a half of the rows each, from
+    :data:`THREADED_SAMPLES` pixels on (each row is the same numbers whichever thread computes it)."""
+    rows, cols = x.shape[1:]
+    smoothing, edge, second_order, second_edge = (float(c) for c in constants)
+    # In units of the smoothing (the gradient does not change when x and the constants are scaled
+    # together): the float32 arithmetic meets neither overflow nor underflow, whatever the threshold.
+    scaled = (np.float32(edge / smoothing), np.float32(second_order), np.float32(second_edge / smoothing))
+    # The differences and the step in the images' type (float32 images: twice the samples to a vector).
+    real = x.dtype.type
+    args = (x, real(1.0 / smoothing), real(_LARGEST), *scaled, real(step), out, previous, real(weight))
+    args = (*args, int(unit_rows), int(unit_cols))
+    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
+        _rows(*args, 0, rows)
+        return
+    half = rows // 2
+    future = _pool().submit(_rows, *args, half, rows)
+    _rows(*args, 0, half)
+    future.result()
+
+
 def _pool() -> ThreadPoolExecutor:
-    """The thread that computes the second half of the penalty's gradient (one for the process)."""
+    """The thread that computes the second half of the rows (one for the process)."""
     global _POOL
     with _POOL_LOCK:
         if _POOL is None:
@@ -190,150 +209,228 @@ def _pool() -> ThreadPoolExecutor:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _log_weight(squared_norm, smoothing, edge):
-    """d(edge log(1 + n / edge))/dn / n, with n = sqrt(squared_norm + smoothing**2)."""
-    # Never 0, even where smoothing**2 underflows (a threshold below any a file may hold). Python's
-    # max(n, 1e-150) written as a select, which the compiler vectorises.
-    n = math.sqrt(squared_norm + smoothing * smoothing)
-    n = 1e-150 if 1e-150 > n else n
+def _log_weight(squared_norm, edge):
+    """d(edge log(1 + n / edge))/dn / n, with n = sqrt(squared_norm + 1) (in units of the smoothing)."""
+    n = np.sqrt(squared_norm + np.float32(1.0))
     return edge / (n * (edge + n))
 
 
-@njit(cache=True, nogil=True)
-def _gradient(x, smoothing, edge, second_order, second_edge, out, work, start, stop):
-    """:func:`penalty_gradient` into the rows ``start`` to ``stop`` of ``out`` (the others are left
-    untouched). The weights of every pixel first, then, channel by
-    channel, what each pixel's second differences spread to its neighbours, then every sample
-    gathers its terms: the same numbers, added in the same order, as a scatter of each pixel's
-    stencil over the pixels in row-major order, without a branch inside the image."""
-    inverse, w, a, b, d = work[0], work[1], work[2], work[3], work[4]
-    _first_weights(x, smoothing, edge, inverse)
-    second = second_order > 0.0
-    if second:
-        _second_weights(x, smoothing, second_order, second_edge, w)
-    for c in range(len(x)):
-        if second:
-            _second_terms(x[c], w, a, b, d)
-        _divergence(x[c], inverse, a, b, d, second, out[c], start, stop)
+@njit(cache=True, nogil=True, inline="always")
+def _scaled(difference, scale, largest):
+    """A difference in units of the smoothing (``scale`` is its inverse), as a float32 of at most
+    :data:`_LARGEST`."""
+    d = difference * scale
+    d = largest if d > largest else d
+    d = -largest if d < -largest else d
+    return np.float32(d)
 
 
-@njit(cache=True, nogil=True)
-def _divergence(v, inverse, a, b, d, second, out, start, stop):
-    """The gradient of the channel ``v`` on the rows ``start`` to ``stop`` (see :func:`_gradient`)."""
-    rows, cols = v.shape
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rows(
+    x,
+    scale,
+    largest,
+    edge,
+    second_order,
+    second_edge,
+    step,
+    out,
+    previous,
+    weight,
+    unit_rows,
+    unit_cols,
+    start,
+    stop,
+):
+    """The rows ``start`` to ``stop`` of the penalty's gradient at ``x`` (``step`` < 0), or of a whole
+    iteration (``step`` >= 0): ``out = x - step gradient``, brought to unit length on the first
+    ``unit_rows`` rows and ``unit_cols`` columns, then (``weight`` >= 0) ``previous = out + weight
+    (out - previous)``, in place; other rows of ``out`` and ``previous`` are left untouched.
+    ``scale``: the inverse of the smoothing, ``largest``: :data:`_LARGEST`, ``step``, ``weight``:
+    of the type of ``x``; ``edge``, ``second_order``, ``second_edge``: float32, the first and last
+    in units of the smoothing.
+
+    One pass over the image: what a row's stencils reach in the rows above and below (the weighted
+    differences, :func:`_row_terms`) is made a row ahead into rings of four rows, so what they read
+    and write stays in the cache. The differences, their weights and the gradient are float32 (twice
+    the pixels per instruction of float64; a relative precision of 6e-8 on the gradient, which
+    moves the samples by a hundredth of the threshold per step), the step of the type of ``x``.
+    Every sample is the same numbers, added in the same order, whatever ``start`` and ``stop`` (the
+    rows past them are made again, not shared), and without a branch inside the image."""
+    channels, rows, cols = x.shape
+    ring = np.empty((6, channels, 4, cols), np.float32)
+    px, py, a, b, d, dy = ring[0], ring[1], ring[2], ring[3], ring[4], ring[5]
+    s, w, g = np.empty(cols, np.float32), np.empty(cols, np.float32), np.empty((channels, cols), np.float32)
+    constants = (scale, largest, edge, second_order, second_edge, second_order > 0.0)
+    first = max(start - 1, 0)
+    if first > 0:  # the row above the first one made, for its second differences
+        _vertical(x, first - 1, scale, largest, dy[:, (first - 1) % 4])
+    for r in range(first, min(start + 1, rows)):
+        _row_terms(x, r, *constants, s, w, px, py, a, b, d, dy)
     for i in range(start, stop):
-        border = i == 0 or i == rows - 1
-        for j in range(0, cols, 1 if border else max(cols - 1, 1)):
-            out[i, j] = _pixel(v, inverse, a, b, d, i, j, second, False)
-        if border:
+        if i + 1 < rows:
+            _row_terms(x, i + 1, *constants, s, w, px, py, a, b, d, dy)
+        for c in range(channels):
+            _divergence_row(i, rows, px[c], py[c], a[c], b[c], d[c], constants[-1], g[c])
+        if step < 0.0:
+            for c in range(channels):
+                out[c, i] = g[c]
             continue
-        # Inside, a loop the compiler vectorises (the flags are constants there).
-        if second:
-            for j in range(1, cols - 1):
-                out[i, j] = _pixel(v, inverse, a, b, d, i, j, True, True)
+        for c in range(channels):
+            v, o, gc = x[c, i], out[c, i], g[c]
+            for j in range(cols):
+                o[j] = v[j] - gc[j] * step
+        if i < unit_rows:
+            _to_unit_length(out, i, unit_cols)
+        if weight >= 0.0:
+            for c in range(channels):
+                o, p = out[c, i], previous[c, i]
+                for j in range(cols):
+                    p[j] = (o[j] - p[j]) * weight + o[j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_terms(x, r, scale, largest, edge, second_order, second_edge, second, s, w, px, py, a, b, d, dy):
+    """Row ``r`` (into the ring row ``r % 4``), channel by channel, of the forward differences (0 past
+    the end) times the weight of the joint gradient, ``px`` and ``py``, and, with ``second``, of what
+    each pixel's second differences spread to its neighbours: ``a = w xx``, ``b = w yy``,
+    ``d = 2 w xy``, with ``w`` ``second_order`` times the weight of the joint second differences.
+    In units of the smoothing (``scale``: its inverse; at most ``largest``); ``dy``: the vertical
+    differences, which need to be there for the row above (:func:`_vertical`); ``s`` and ``w``:
+    scratch rows. Loops that each write one row, which the compiler vectorises.
+
+    The second differences are differences of the first ones (in float32: their error, 6e-8 times
+    the slope, is far below the smoothing wherever the second-order term has a say); ``a`` holds
+    the row's ``dx`` until ``xx`` replaces it."""
+    channels, rows, cols = x.shape
+    k = r % 4
+    _vertical(x, r, scale, largest, dy[:, k])
+    for c in range(channels):
+        here, dx = x[c, r], a[c, k]
+        for j in range(cols - 1):
+            dx[j] = _scaled(here[j + 1] - here[j], scale, largest)
+        dx[cols - 1] = 0.0
+    s[:] = 0.0
+    for c in range(channels):
+        dx, dyc = a[c, k], dy[c, k]
+        for j in range(cols):
+            s[j] += dx[j] * dx[j] + dyc[j] * dyc[j]
+    for j in range(cols):
+        s[j] = _log_weight(s[j], edge)
+    for c in range(channels):
+        dx, dyc, wx, wy = a[c, k], dy[c, k], px[c, k], py[c, k]
+        for j in range(cols):
+            wx[j] = dx[j] * s[j]
+        for j in range(cols):
+            wy[j] = dyc[j] * s[j]
+    if not second:
+        return
+    for c in range(channels):
+        xx, yy, xy, dyc = a[c, k], b[c, k], d[c, k], dy[c, k]
+        for j in range(cols - 2, 0, -1):  # backwards: xx overwrites the dx it reads
+            xx[j] = xx[j] - xx[j - 1]
+        xx[0] = xx[cols - 1] = 0.0
+        if 0 < r < rows - 1:
+            above = dy[c, (r - 1) % 4]
+            for j in range(cols):
+                yy[j] = dyc[j] - above[j]
         else:
-            for j in range(1, cols - 1):
-                out[i, j] = _pixel(v, inverse, a, b, d, i, j, False, True)
+            yy[:] = 0.0
+        for j in range(cols - 1):
+            xy[j] = dyc[j + 1] - dyc[j]  # 0 on the last row, where dy is
+        xy[cols - 1] = 0.0
+    w[:] = 0.0
+    for c in range(channels):
+        xx, yy, xy = a[c, k], b[c, k], d[c, k]
+        for j in range(cols):
+            w[j] += xx[j] * xx[j] + yy[j] * yy[j] + (xy[j] + xy[j]) * xy[j]
+    for j in range(cols):
+        w[j] = second_order * _log_weight(w[j], second_edge)
+    for c in range(channels):
+        xx, yy, xy = a[c, k], b[c, k], d[c, k]
+        for j in range(cols):
+            xx[j] *= w[j]
+        for j in range(cols):
+            yy[j] *= w[j]
+        for j in range(cols):
+            xy[j] *= w[j] + w[j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _vertical(x, r, scale, largest, dy):
+    """``dy[c] = x[c, r + 1] - x[c, r]`` in units of the smoothing (0 on the last row)."""
+    channels, rows, cols = x.shape
+    for c in range(channels):
+        here, below, out = x[c, r], x[c, min(r + 1, rows - 1)], dy[c]
+        for j in range(cols):
+            out[j] = _scaled(below[j] - here[j], scale, largest)
+
+
+@njit(cache=True, nogil=True)
+def _divergence_row(i, rows, px, py, a, b, d, second, out):
+    """Row ``i`` of the gradient of one channel into ``out``, from its rings of four rows (see
+    :func:`_rows`)."""
+    cols = out.shape[0]
+    up, here, down = (i - 1) % 4, i % 4, (i + 1) % 4
+    border = i == 0 or i == rows - 1
+    for j in range(0, cols, 1 if border else max(cols - 1, 1)):
+        out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, False)
+    if border:
+        return
+    # Inside, a loop the compiler vectorises (the flags are constants there).
+    if second:
+        for j in range(1, cols - 1):
+            out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, True, True)
+    else:
+        for j in range(1, cols - 1):
+            out[j] = _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, False, True)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _pixel(v, inverse, a, b, d, i, j, second, inside):
-    """Minus the divergence of the weighted gradient at pixel ``(i, j)`` of the channel ``v``, then
-    (``second``) the terms of the second differences whose stencils reach it, from the pixels
-    ``(i - 1, j - 1)``, ``(i - 1, j)``, ``(i, j - 1)``, itself, ``(i, j + 1)``, ``(i + 1, j)`` in that
-    order; ``inside``: ``(i, j)`` is not on the border."""
-    rows, cols = v.shape
-    g = 0.0
+def _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, inside):
+    """Minus the divergence of the weighted gradient at pixel ``(i, j)``, then (``second``) the terms
+    of the second differences whose stencils reach it, from the pixels ``(i - 1, j - 1)``,
+    ``(i - 1, j)``, ``(i, j - 1)``, itself, ``(i, j + 1)``, ``(i + 1, j)`` in that order; ``up``,
+    ``here``, ``down``: the ring rows of ``i - 1``, ``i``, ``i + 1``; ``inside``: ``(i, j)`` is not on
+    the border."""
+    g = np.float32(0.0)
     if inside or j + 1 < cols:
-        g -= (v[i, j + 1] - v[i, j]) * inverse[i, j]
+        g -= px[here, j]
     if inside or j > 0:
-        g += (v[i, j] - v[i, j - 1]) * inverse[i, j - 1]
+        g += px[here, j - 1]
     if inside or i + 1 < rows:
-        g -= (v[i + 1, j] - v[i, j]) * inverse[i, j]
+        g -= py[here, j]
     if inside or i > 0:
-        g += (v[i, j] - v[i - 1, j]) * inverse[i - 1, j]
+        g += py[up, j]
     if second:
         if inside or (i > 0 and j > 0):
-            g += d[i - 1, j - 1]
+            g += d[up, j - 1]
         if inside or i > 0:
-            g += b[i - 1, j] - d[i - 1, j]
+            g += b[up, j] - d[up, j]
         if inside or j > 0:
-            g += a[i, j - 1] - d[i, j - 1]
-        g += d[i, j] - 2.0 * (a[i, j] + b[i, j])
+            g += a[here, j - 1] - d[here, j - 1]
+        middle = a[here, j] + b[here, j]
+        g += d[here, j] - (middle + middle)
         if inside or j + 1 < cols:
-            g += a[i, j + 1]
+            g += a[here, j + 1]
         if inside or i + 1 < rows:
-            g += b[i + 1, j]
+            g += b[down, j]
     return g
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _first_weights(x, smoothing, edge, inverse):
-    """The weight of the joint gradient at every pixel (forward differences, 0 past the end)."""
-    channels, (rows, cols) = len(x), x[0].shape
-    s = np.empty(cols)
-    for i in range(rows):
-        s[:] = 0.0
-        for c in range(channels):
-            v = x[c]
-            if i + 1 < rows:
-                for j in range(cols - 1):
-                    dx = v[i, j + 1] - v[i, j]
-                    dy = v[i + 1, j] - v[i, j]
-                    s[j] += dx * dx + dy * dy
-                dy = v[i + 1, cols - 1] - v[i, cols - 1]
-                s[cols - 1] += dy * dy  # dx * dx + dy * dy with dx = 0: the same number
-            else:
-                for j in range(cols - 1):
-                    dx = v[i, j + 1] - v[i, j]
-                    s[j] += dx * dx
-        for j in range(cols):
-            inverse[i, j] = _log_weight(s[j], smoothing, edge)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _second_weights(x, smoothing, weight, edge, w):
-    """``weight`` times the weight of the joint second differences at every pixel."""
-    channels, (rows, cols) = len(x), x[0].shape
-    s = np.empty(cols)
-    for i in range(rows):
-        s[:] = 0.0
-        for c in range(channels):
-            v = x[c]
-            if 0 < i < rows - 1:
-                for j in range(1, cols - 1):
-                    xx, yy, xy = _second_differences(v, i, j, True)
-                    s[j] += xx * xx + yy * yy + 2.0 * xy * xy
-            # The border pixels of the row (all of them on the first and last rows).
-            for j in range(0, cols, max(cols - 1, 1) if 0 < i < rows - 1 else 1):
-                xx, yy, xy = _second_differences(v, i, j, False)
-                s[j] += xx * xx + yy * yy + 2.0 * xy * xy
-        for j in range(cols):
-            w[i, j] = weight * _log_weight(s[j], smoothing, edge)
-
-
 @njit(cache=True, nogil=True)
-def _second_terms(v, w, a, b, d):
-    """What pixel ``(i, j)`` of the channel ``v`` spreads to its neighbours: ``a = w xx``,
-    ``b = w yy``, ``d = 2 w xy``."""
-    rows, cols = v.shape
-    for i in range(rows):
-        inside = 0 < i < rows - 1
-        for j in range(cols):
-            xx, yy, xy = _second_differences(v, i, j, inside and 0 < j < cols - 1)
-            a[i, j], b[i, j], d[i, j] = w[i, j] * xx, w[i, j] * yy, 2.0 * w[i, j] * xy
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _second_differences(x, i, j, inside):
-    """``xx``, ``yy`` and ``xy`` of the channel ``x`` at pixel ``(i, j)`` (0 where they do not fit);
-    ``inside``: not on a border."""
-    rows, cols = x.shape
-    xx = x[i, j + 1] - 2.0 * x[i, j] + x[i, j - 1] if inside or 0 < j < cols - 1 else 0.0
-    yy = x[i + 1, j] - 2.0 * x[i, j] + x[i - 1, j] if inside or 0 < i < rows - 1 else 0.0
-    fits = inside or (i + 1 < rows and j + 1 < cols)
-    xy = x[i + 1, j + 1] - x[i + 1, j] - x[i, j + 1] + x[i, j] if fits else 0.0
-    return xx, yy, xy
+def _to_unit_length(x, i, cols):
+    """Vectors ``x[:, i, j]`` of the row ``i``, first ``cols`` columns, to unit length, in place
+    (those shorter than :data:`_SHORTEST` left as they are)."""
+    for j in range(cols):
+        s = 0.0
+        for k in range(x.shape[0]):
+            s += x[k, i, j] * x[k, i, j]
+        norm = np.sqrt(s)
+        if norm > _SHORTEST:
+            scale = 1.0 / max(norm, _SHORTEST)
+            for k in range(x.shape[0]):
+                x[k, i, j] *= scale
 
 
 def iterate(
@@ -362,9 +459,11 @@ def iterate(
 
     Yields
     ------
-    ndarray, shape (C, H, W), float64: the channels (the first one: plain dequantization,
-    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin, :func:`dequantize`).
-    Each array is overwritten by the next step (the buffers are reused): copy one to keep it.
+    ndarray, shape (C, H, W): the channels, float64 for the first one (plain dequantization,
+    reconstruction at :data:`bandelets.quantize.RECONSTRUCTION` of each bin, :func:`dequantize`),
+    float32 for the others where that one's largest magnitude is at most :data:`SINGLE_UP_TO`
+    ``T`` (float64 otherwise). Each array is overwritten by the next step (the buffers are
+    reused): copy one to keep it.
     """
     x = np.ascontiguousarray(synthesis(np.array([dequantize(b, threshold) for b in q])))
     yield x
@@ -373,54 +472,37 @@ def iterate(
             yield x
     # Nesterov's momentum (as in FISTA): each step starts from the last estimate pushed further
     # along the last move. Same gain as plain steps in 40 to 50 % of the iterations.
+    largest = float(np.max(np.abs(x)))
+    single = largest <= SINGLE_UP_TO * threshold and 2.0**-64 <= threshold <= 2.0**64
+    dtype = np.float32 if single else np.float64
+    with np.errstate(under="ignore"):  # float32: what is below its range is 0
+        x = x.astype(dtype)
     ahead, t = x.copy(), 1.0
-    # Two images, the step and the penalty's scratch space: allocated once, not at every iteration.
-    step, work = np.empty_like(x), np.empty((5, x.shape[1] + 4, x.shape[2]))
+    # Where each step writes (the three images swap roles): allocated once, not at every iteration.
+    spare = np.empty_like(x)
     constants = (SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold)
+    unit = (0, 0) if unit_vectors is None else unit_vectors
     for k in count(1):
-        penalty_gradient(ahead, *constants, out=step, work=work)
-        _descend(ahead.reshape(-1), step.reshape(-1), STEP * threshold)
-        if unit_vectors is not None:
-            _to_unit_length(ahead, *unit_vectors)
-        new = ahead
-        if k % PROJECT_EVERY == 0:
-            c = analysis(ahead)  # may overwrite ahead
+        t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
+        weight = (t - 1.0) / t_next
+        project = k % PROJECT_EVERY == 0
+        # The step, and unless it projects, the momentum into x: one pass over the image.
+        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit)
+        new = spare
+        if project:
+            c = analysis(spare.astype(np.float64, copy=False))  # may overwrite spare
             for channel, bins in zip(c, q, strict=True):
                 clip_into_bins(channel, bins, threshold)
-            new = np.ascontiguousarray(synthesis(c))  # flat views below
-        t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
-        _extrapolate(new.reshape(-1), x.reshape(-1), (t - 1.0) / t_next)
-        ahead, x, t = x, new, t_next
+            with np.errstate(under="ignore"):
+                new = np.ascontiguousarray(synthesis(c), dtype=dtype)  # flat views below
+            _extrapolate(new.reshape(-1), x.reshape(-1), x.dtype.type(weight))
+        ahead, x, spare, t = x, new, ahead, t_next
         yield x
-
-
-@njit(cache=True, nogil=True)
-def _descend(x, gradient, step):
-    """``x -= step * gradient``, in place (flat arrays): one pass over memory, not two, and the same
-    numbers as ``gradient *= step; x -= gradient``."""
-    for i in range(x.shape[0]):
-        x[i] = x[i] - gradient[i] * step
 
 
 @njit(cache=True, nogil=True)
 def _extrapolate(new, x, weight):
     """``x = new + weight (new - x)``, in place in ``x`` (flat arrays), with the rounding of
-    ``np.subtract(new, x, out=x); x *= weight; x += new``."""
+    :func:`_rows`."""
     for i in range(x.shape[0]):
         x[i] = (new[i] - x[i]) * weight + new[i]
-
-
-@njit(cache=True, nogil=True)
-def _to_unit_length(x, rows, cols):
-    """Vectors ``x[:, i, j]`` of the first ``rows`` rows and ``cols`` columns to unit length, in
-    place (those shorter than :data:`_SHORTEST` left as they are)."""
-    for i in range(rows):
-        for j in range(cols):
-            s = 0.0
-            for k in range(x.shape[0]):
-                s += x[k, i, j] * x[k, i, j]
-            norm = np.sqrt(s)
-            if norm > _SHORTEST:
-                scale = 1.0 / max(norm, _SHORTEST)
-                for k in range(x.shape[0]):
-                    x[k, i, j] *= scale
