@@ -79,7 +79,8 @@ _COARSEST = 100  # vertices of the coarsest level of the hierarchy
 _CONFORMAL_WEIGHT = 1.0  # weight of tr G beside the stretch term tr G / det G
 # Least depth of a 1-ring's kernel point that counts as unflipping the ring: a ring whose
 # kernel is a point or a segment (crushed corners) has a depth of 0 up to rounding (1e-16 to
-# 1e-15), either sign.
+# 1e-15), either sign. Moving the vertices whose depth came out at +1e-16 (HiGHS reported 0)
+# lowered fandisk's uncoded 256^2 ceiling from 77.0 to 74.1 dB (stretch 1.18 to 1.76).
 _DEPTH = 1e-14
 
 
@@ -218,8 +219,7 @@ def _kernel_point(points, ring_a, ring_b, centre):
     e2 = np.cross(centre, e1)
     r = len(ring_a)
     # In (u + 1, v + 1, t), so that a degenerate program (a crushed ring: all of its points are
-    # optimal) leaves u and v at their lower bound, as HiGHS does (which the maps were tuned
-    # with; the centre instead lowered fandisk's uncoded 256^2 ceiling from 77.0 to 73.9 dB).
+    # optimal) leaves u and v at their lower bound, as HiGHS does.
     # Rows: -(n.e1) u - (n.e2) v + t <= n.centre for each triangle, then 0 <= u + 1, v + 1 <= 2
     # and t <= 1.
     a = np.zeros((r + 5, 3))
