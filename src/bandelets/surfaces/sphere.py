@@ -663,6 +663,9 @@ def _relax(vertices, faces, points, laplacian, masses, max_steps: int, tol: floa
                 return points, iteration + 1
             points, current = polished, value
             history.append(current)
+            # After a line search that failed (60 halvings), the step would only double back
+            # from 2^-60: every later step would move nothing and the level stop unrelaxed.
+            step = 1.0
     return points, max_steps
 
 
