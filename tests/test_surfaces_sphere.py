@@ -129,3 +129,24 @@ def test_the_coarsest_level_is_relaxed_until_its_limbs_open():
     mapped = spherical_parameterization(mesh.vertices[kept], faces)
     assert mapped.levels == 2 and mapped.distortion["flips"] == 0
     assert mapped.distortion["stretch"] < 3.0
+
+
+def test_relaxation_recovers_its_step_after_a_crushed_start():
+    # A start with a triangle crushed to 1e-9 makes the first line searches halve the step 60
+    # times; once polishing has opened the triangle the step must start again from 1, or it
+    # only doubles back from 2^-60 and the level stops unrelaxed (stretch 1.67 against 1.20).
+    from bandelets.surfaces.sphere import _map_level, area_distortion
+
+    mesh = deformed_cube()
+    faces = np.asarray(mesh.faces)
+    box = trimesh.creation.box().subdivide().subdivide().subdivide().vertices
+    clean = box / np.linalg.norm(box, axis=1, keepdims=True)
+    crushed = clean.copy()
+    centre = crushed[faces[0]].mean(axis=0)
+    crushed[faces[0]] = centre + 1e-9 * (crushed[faces[0]] - centre)
+    crushed /= np.linalg.norm(crushed, axis=1, keepdims=True)
+    assert not flipped(faces, crushed).any()
+    reference, _ = _map_level(mesh.vertices, faces, clean, 3000, 1e-4, 1.0)
+    relaxed, _ = _map_level(mesh.vertices, faces, crushed, 3000, 1e-4, 1.0)
+    stretch = [area_distortion(mesh.vertices, faces, p)["stretch"] for p in (reference, relaxed)]
+    assert stretch[1] < 1.02 * stretch[0]
