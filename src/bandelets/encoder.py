@@ -93,22 +93,29 @@ def encode_at_threshold(
     # Not with local frames: the frames of each level were built from the coarser levels as
     # Q_T left them, and the decoder must rebuild exactly those.
     if not header.frames:
-        _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
-        approximation = approximation_plan(bandelets[0].shape, header.levels).order
-        for b, q, bits in zip(bandelets, quantized, spent, strict=True):
-            bits[approximation] = 0.0  # coded as a prediction residual: left alone
-            optimise_bins(b, q, bits.reshape(q.shape), threshold, LAMBDA)
+        _optimise_bins(bandelets, quantized, header, trees)
     # The weighted normal component's error is the weight times the error it makes.
     scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
     sse = sum(
         float(np.sum((b - dequantize(q, threshold)) ** 2)) / scale**2
         for b, q, scale in zip(bandelets, quantized, scales, strict=True)
     )
+    del bandelets  # not held while coding: the peak of a large image's encoding
     splits, dirs, coeffs = coders = new_coders()
     trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized])
     code_lifting(dirs, header, lifting)
     data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
     return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized, lifting=lifting)
+
+
+def _optimise_bins(bandelets: list, quantized: list, header: Header, trees: list) -> None:
+    """Choose again, in place, the bins of ``quantized`` between 0 and +-1, priced by a first
+    coding pass (:func:`bandelets.quantize.optimise_bins`); the prices are freed on return."""
+    _, _, spent = code_image(new_coders(), header, trees, [q.ravel() for q in quantized])
+    approximation = approximation_plan(bandelets[0].shape, header.levels).order
+    for b, q, bits in zip(bandelets, quantized, spent, strict=True):
+        bits[approximation] = 0.0  # coded as a prediction residual: left alone
+        optimise_bins(b, q, bits.reshape(q.shape), header.threshold, LAMBDA)
 
 
 def _local_frames(coefficients: list[np.ndarray], header: Header):
@@ -355,14 +362,21 @@ def encode_with_stats(
     # MAX_THRESHOLD are refused by the quantizer.
     t_max = 2.0 * float(magnitudes.max()) * max(1.0, geometry.get("normal_weight", 1.0))
     t_max = min(max(t_max, MIN_THRESHOLD), MAX_THRESHOLD)
+    # A rate target's model keeps a sample of the magnitudes, not all of them.
+    model = ratecontrol.size_model(magnitudes) if bpp is not None else None
+    del magnitudes
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     # What the user gets: the decoded values written at the source's depth.
-    measure_psnr = metrics.psnr_against(reference, kind)
     measure_channels = metrics.psnr_of_channels(reference, kind, depth)
     # The decoded image is kept for the caller (measured) or the angular target.
     keep = measured or max_angle is not None
+    # A copy of the reference, made when first needed (not by a rate target with the restoration).
+    measure_psnr = None
 
     def measure(decoded: np.ndarray) -> float:
+        nonlocal measure_psnr
+        if measure_psnr is None:
+            measure_psnr = metrics.psnr_against(reference, kind)
         return measure_psnr(as_read(decoded, kind, depth))
 
     def decoded(encoded: Encoded) -> np.ndarray:
@@ -403,7 +417,6 @@ def encode_with_stats(
                     f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at "
                     f"least {HEADER_BYTES} bytes of header"
                 )
-            model = ratecontrol.size_model(magnitudes)
             if lifting_levels:
                 t_first = ratecontrol.first_threshold(target, t_max, model)
                 coefficients, lifting, lifting_levels = _lifted(

@@ -194,14 +194,14 @@ def psnr_of_channels(
         rows, cols = reference.shape[:2]
         return lambda channels: measure(as_read(np.moveaxis(channels[:, :rows, :cols], 0, -1), kind, depth))
     reference = unit_vectors(with_z(reference) if reference.shape[-1] == 2 else reference)
-    top = peak(reference, kind)
+    top, samples = peak(reference, kind), reference.size
+    # Only the planes are kept: the encoder holds this through rate control.
     planes = np.ascontiguousarray(np.moveaxis(reference, -1, 0))
+    del reference
 
     def measure(channels: np.ndarray) -> float:
         channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
-        rmse = float(
-            np.sqrt(_normal_map_sse(planes, channels, 2**depth - 1 if depth else 0) / reference.size)
-        )
+        rmse = float(np.sqrt(_normal_map_sse(planes, channels, 2**depth - 1 if depth else 0) / samples))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
     return measure
