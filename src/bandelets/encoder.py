@@ -333,6 +333,8 @@ def encode_with_stats(
     coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
     if layout != "xyz":  # x, y as given (see bandelets.normalmaps)
         coded = given[..., :2]
+    # A normal map read from integer samples was converted to floats: that copy is not held.
+    del array, given
     if kind == "normal-map":  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
     coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
