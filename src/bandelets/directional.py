@@ -251,6 +251,7 @@ def pays(
     lifting: int,
     threshold: float,
     frames: bool = False,
+    plain: list[np.ndarray] | None = None,
 ) -> bool:
     """Whether the directions ``fields`` pay on ``channels`` at the threshold ``T``: whether
     :func:`cost_ratio` is below :data:`PAYS_BELOW` (``frames``, the channels of a normal map
@@ -263,23 +264,33 @@ def pays(
     acacia door from 1 bpp), save the acacia door at 0.5 bpp (0.875, -0.14 dB). On the smooth
     bumps and the lava flow the ratio is 1.00 to 1.01 at every rate: directions there lost up to
     0.7 dB.
+
+    ``plain``: the CDF 9/7 coefficients of ``channels`` when the caller has them (else made again).
     """
     below = PAYS_BELOW_FRAMES if frames else PAYS_BELOW
-    return cost_ratio(channels, lifted, fields, levels, lifting, threshold) < below
+    return cost_ratio(channels, lifted, fields, levels, lifting, threshold, plain) < below
 
 
 def cost_ratio(
-    channels, lifted: list[np.ndarray], fields: list[np.ndarray], levels: int, lifting: int, threshold: float
+    channels,
+    lifted: list[np.ndarray],
+    fields: list[np.ndarray],
+    levels: int,
+    lifting: int,
+    threshold: float,
+    plain: list[np.ndarray] | None = None,
 ) -> float:
     """``D + LAMBDA T**2 R`` of the lifted coefficients ``lifted`` (directions ``fields``) over
-    that of the plain CDF 9/7 ones of ``channels``, ``D`` the squared error of the channels after
-    quantization at the threshold ``T`` (no restoration), ``R`` the bits of the coefficients
-    estimated as :func:`choose` does, plus the coded directions."""
+    that of the plain CDF 9/7 ones of ``channels`` (``plain``, if given), ``D`` the squared error
+    of the channels after quantization at the threshold ``T`` (no restoration), ``R`` the bits of
+    the coefficients estimated as :func:`choose` does, plus the coded directions."""
+    if plain is None:
+        plain = [wavedec(np.array(x, dtype=np.float64), "cdf97", levels) for x in channels]
     costs = []
     for coefficients, synthesise, side in (
         (lifted, lambda c: synthesis(c, levels, lifting, fields), fields),
         (
-            [wavedec(np.array(x, dtype=np.float64), "cdf97", levels) for x in channels],
+            plain,
             lambda c: waverec(c, "cdf97", levels),
             [np.zeros_like(f) for f in fields],
         ),

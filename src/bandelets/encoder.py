@@ -474,7 +474,9 @@ def _lifted(
     channels = padded_channels(coded, levels)
     lifted, fields = directional.analysis(channels, levels, lifting_levels, threshold=threshold)
     frames = len(channels) == 3  # a normal map's three channels are coded in local frames
-    if not check or directional.pays(channels, lifted, fields, levels, lifting_levels, threshold, frames):
+    if not check or directional.pays(
+        channels, lifted, fields, levels, lifting_levels, threshold, frames, plain
+    ):
         return lifted, fields, lifting_levels
     return plain, None, 0
 
