@@ -339,12 +339,13 @@ def encode_with_stats(
         geometry = implied_options(kind, coded.shape[2])
     coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
     lifting_levels, lifting = _lifting_levels(options, levels, geometry), None
+    (height, width), channels = x.shape[:2], coded.shape[2]
 
     def encode_at(t: float) -> Encoded:
         header = Header(
-            height=x.shape[0],
-            width=x.shape[1],
-            channels=coded.shape[2],
+            height=height,
+            width=width,
+            channels=channels,
             kind=kind,
             transform=options.transform,
             wavelet=options.wavelet,
@@ -370,6 +371,11 @@ def encode_with_stats(
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     # What the user gets: the decoded values written at the source's depth.
     measure_channels = metrics.psnr_of_channels(reference, kind, depth)
+    # Rate control holds the source only where it measures a decoded image against it: a quality
+    # target, or a measured encode without the restoration (which measures its own planes).
+    if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
+        reference = None
+    del x
     # The decoded image is kept for the caller (measured) or the angular target.
     keep = measured or max_angle is not None
     # A copy of the reference, made when first needed (not by a rate target with the restoration).
@@ -380,6 +386,16 @@ def encode_with_stats(
         if measure_psnr is None:
             measure_psnr = metrics.psnr_against(reference, kind)
         return measure_psnr(as_read(decoded, kind, depth))
+
+    def lift(t: float) -> None:
+        """Lift along directions chosen for ``t`` where they pay (:func:`_lifted`), before rate
+        control; then let go of ``coded``."""
+        nonlocal coefficients, lifting, lifting_levels, coded
+        if lifting_levels:
+            coefficients, lifting, lifting_levels = _lifted(
+                coded, coefficients, levels, lifting_levels, t, options.lifting is None
+            )
+        coded = None
 
     def decoded(encoded: Encoded) -> np.ndarray:
         if encoded.decoded is not None:  # the restored image, as decode returns it
@@ -406,24 +422,19 @@ def encode_with_stats(
         if unrestored is not None:
             return finished(_read_back(unrestored))
         if threshold is not None:
-            if lifting_levels:
-                coefficients, lifting, lifting_levels = _lifted(
-                    coded, coefficients, levels, lifting_levels, float(threshold), options.lifting is None
-                )
+            lift(float(threshold))
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
         if bpp is not None:
-            target = int(bpp * x.shape[0] * x.shape[1] / 8)
+            target = int(bpp * height * width / 8)
             if target < HEADER_BYTES:
                 raise ValueError(
                     f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at "
                     f"least {HEADER_BYTES} bytes of header"
                 )
             if lifting_levels:
-                t_first = ratecontrol.first_threshold(target, t_max, model)
-                coefficients, lifting, lifting_levels = _lifted(
-                    coded, coefficients, levels, lifting_levels, t_first, options.lifting is None
-                )
+                lift(ratecontrol.first_threshold(target, t_max, model))
+            coded = None
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
@@ -446,10 +457,7 @@ def encode_with_stats(
             def label(q: float) -> str:
                 return f"PSNR of {q:.2f} dB"
 
-        if lifting_levels:
-            coefficients, lifting, lifting_levels = _lifted(
-                coded, coefficients, levels, lifting_levels, t_guess, options.lifting is None
-            )
+        lift(t_guess)
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
             lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label, MIN_THRESHOLD
