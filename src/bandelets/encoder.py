@@ -369,13 +369,8 @@ def encode_with_stats(
     model = ratecontrol.size_model(magnitudes) if bpp is not None else None
     del magnitudes
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
-    # What the user gets: the decoded values written at the source's depth.
-    measure_channels = metrics.psnr_of_channels(reference, kind, depth)
-    # Rate control holds the source only where it measures a decoded image against it: a quality
-    # target, or a measured encode without the restoration (which measures its own planes).
-    if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
-        reference = None
     del x
+    measure_channels = None
     # The decoded image is kept for the caller (measured) or the angular target.
     keep = measured or max_angle is not None
     # A copy of the reference, made when first needed (not by a rate target with the restoration).
@@ -387,15 +382,22 @@ def encode_with_stats(
             measure_psnr = metrics.psnr_against(reference, kind)
         return measure_psnr(as_read(decoded, kind, depth))
 
-    def lift(t: float) -> None:
-        """Lift along directions chosen for ``t`` where they pay (:func:`_lifted`), before rate
-        control; then let go of ``coded``."""
-        nonlocal coefficients, lifting, lifting_levels, coded
-        if lifting_levels:
+    def prepare(t: float | None) -> None:
+        """Before rate control: lift along directions chosen for ``t`` (None: no lifting) where
+        they pay (:func:`_lifted`), make the restoration's measure, and let go of the source
+        where it is not measured again (one large array at a time: the peak of large images)."""
+        nonlocal coefficients, lifting, lifting_levels, coded, reference, measure_channels
+        if lifting_levels and t is not None:
             coefficients, lifting, lifting_levels = _lifted(
                 coded, coefficients, levels, lifting_levels, t, options.lifting is None
             )
         coded = None
+        if options.restore:  # what the user gets: the decoded values written at the source's depth
+            measure_channels = metrics.psnr_of_channels(reference, kind, depth)
+        # Rate control holds the source only where it measures a decoded image against it: a
+        # quality target, or a measured encode without the restoration.
+        if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
+            reference = None
 
     def decoded(encoded: Encoded) -> np.ndarray:
         if encoded.decoded is not None:  # the restored image, as decode returns it
@@ -420,9 +422,10 @@ def encode_with_stats(
             )
 
         if unrestored is not None:
+            prepare(None)
             return finished(_read_back(unrestored))
         if threshold is not None:
-            lift(float(threshold))
+            prepare(float(threshold))
             return finished(encode_at(float(threshold)))
         line.stage("rate control")
         if bpp is not None:
@@ -432,9 +435,7 @@ def encode_with_stats(
                     f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at "
                     f"least {HEADER_BYTES} bytes of header"
                 )
-            if lifting_levels:
-                lift(ratecontrol.first_threshold(target, t_max, model))
-            coded = None
+            prepare(ratecontrol.first_threshold(target, t_max, model) if lifting_levels else None)
             return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
         if max_angle is not None:
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
@@ -457,7 +458,7 @@ def encode_with_stats(
             def label(q: float) -> str:
                 return f"PSNR of {q:.2f} dB"
 
-        lift(t_guess)
+        prepare(t_guess)
         # Each try is restored: the target is met by the restored image, with the smallest file.
         return ratecontrol.for_quality(
             lambda t: finished(encode_at(t)), quality, goal, t_max, t_guess, line, label, MIN_THRESHOLD
