@@ -41,6 +41,12 @@ __all__ = [
 # 387 MiB for 2048 x 2048 x 1 (about 150 MiB of tables, the reorderings of every direction up
 # to 32 x 32, plus 59 B/sample), 213 MiB for 1024 x 1024 x 3; a bpp target (rate control)
 # peaks no higher than a fixed threshold (512 x 512 x 3, 170 MiB). The estimate rounds up.
+# Since the encoder lets go of what it has used (the source during rate control, each pass's
+# code lengths, the plain coefficients the directions are weighed against), a second encode
+# (tables already made) of the crease normal map peaks at 152 MiB for 1024 x 1024 x 3 at 1 bpp
+# (256 before), 580 MiB for 2048 x 2048 x 3 (676 before; 1312 estimated, one piece), 282 MiB for
+# 2048 x 2048 x 1 at a fixed threshold (346 before): the estimate is left as it was, an upper
+# bound, so that the sizes coded in one piece stay those of before.
 # The decoder transforms the channels in parallel threads, so its peak varies with how they
 # interleave: up to 162 B/pixel for 128 x 192 x 3 and 153 for 512 x 512 x 3 (15 decodes each),
 # hence 48 B/sample rather than 32.
