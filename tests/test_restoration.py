@@ -220,7 +220,7 @@ def test_channels_transformed_in_threads_decode_the_same(monkeypatch, crease_map
 @pytest.mark.parametrize("facing_away", [False, True])
 def test_the_encoders_measure_is_the_psnr_of_the_decoded_image(crease_map, facing_away):
     """metrics.psnr_of_channels, which the encoder's search uses on every iteration, gives the PSNR
-    of what decode returns, for two channels (z rebuilt) and three."""
+    of what decode returns, for two channels (equidistant coordinates) and three."""
     normals = crease_map.copy()
     if facing_away:
         normals[:, :32, 2] *= -1
@@ -228,7 +228,7 @@ def test_the_encoders_measure_is_the_psnr_of_the_decoded_image(crease_map, facin
     header, streams = unpack(data)
     assert header.channels == (3 if facing_away else 2)
     trees, quantized, lifting = decoder.decoded_bins(header, streams)
-    measure = metrics.psnr_of_channels(normals, "normal-map")
+    measure = metrics.psnr_of_channels(normals, "normal-map", equidistant=not facing_away)
     for _, channels in zip(range(3), decoder.restorations(header, trees, quantized, lifting), strict=False):
         decoded = metrics.psnr(normals, decoder.decoded_image(channels, header), "normal-map")
         assert measure(channels) == pytest.approx(decoded, abs=1e-9)
@@ -257,7 +257,7 @@ def test_the_encoder_writes_the_fewest_iterations_that_keep_the_share(crease_map
     data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map", restore=False)
     header, streams = unpack(data)
     trees, quantized, lifting = decoder.decoded_bins(header, streams)
-    measure = metrics.psnr_of_channels(crease_map, "normal-map")
+    measure = metrics.psnr_of_channels(crease_map, "normal-map", equidistant=True)
     steps = decoder.restorations(header, trees, quantized, lifting)
     scores = np.array([measure(next(steps)) for _ in range(80)])
     gains = scores - scores[0]

@@ -215,7 +215,8 @@ def decoded_image(channels, header: Header) -> np.ndarray:
     """What :func:`decode` returns, from the decoded (padded) channels."""
     overflow = FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":  # 2 or 3 channels (bandelets.bitstream.unpack)
-        out = metrics.unit_normals(channels, header.height, header.width)
+        # Two channels of a map of unit vectors are equidistant coordinates (bandelets.normalmaps).
+        out = metrics.unit_normals(channels, header.height, header.width, equidistant=header.layout == "xyz")
         if out is None:
             raise overflow
         # Returned in the layout the source had (bandelets.bitstream.LAYOUTS).

@@ -329,10 +329,11 @@ def encode_with_stats(
     if options.extension == "spherical":  # no padding: the fold must stay on the image's border
         while levels > 1 and x.shape[0] % (1 << levels):
             levels -= 1
-    # A unit normal with z >= 0 is fixed by x and y (as BC5 stores normal maps): z costs no bits.
-    coded = x[..., :2] if kind == "normal-map" and np.all(x[..., 2] >= 0) else x
-    if layout != "xyz":  # x, y as given (see bandelets.normalmaps)
-        coded = given[..., :2]
+    # A unit normal with z >= 0 is fixed by two numbers: z costs no bits. They are its azimuthal
+    # equidistant coordinates (see bandelets.normalmaps), or x, y as given (BC5 sources).
+    two = kind == "normal-map" and (layout != "xyz" or np.all(x[..., 2] >= 0))
+    equidistant = two and layout == "xyz"
+    coded = (normalmaps.equidistant(x) if layout == "xyz" else given[..., :2]) if two else x
     # A normal map read from integer samples was converted to floats: that copy is not held.
     del array, given
     if kind == "normal-map":  # three channels: always in local frames
@@ -393,7 +394,7 @@ def encode_with_stats(
             )
         coded = None
         if options.restore:  # what the user gets: the decoded values written at the source's depth
-            measure_channels = metrics.psnr_of_channels(reference, kind, depth)
+            measure_channels = metrics.psnr_of_channels(reference, kind, depth, equidistant)
         # Rate control holds the source only where it measures a decoded image against it: a
         # quality target, or a measured encode without the restoration.
         if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
