@@ -54,7 +54,9 @@ def with_z(xy: np.ndarray) -> np.ndarray:
     return np.concatenate([xy, z], axis=-1)
 
 
-def unit_normals(channels: np.ndarray, height: int, width: int, equidistant: bool = False) -> np.ndarray | None:
+def unit_normals(
+    channels: np.ndarray, height: int, width: int, equidistant: bool = False
+) -> np.ndarray | None:
     """``unit_vectors(with_z(xy))`` (two channels) or ``unit_vectors(xyz)`` (three) of the first
     ``height`` rows and ``width`` columns of ``channels``, shape (C, H, W), in one compiled pass
     with the same numbers (what a decoder returns, ten times faster than the two numpy passes).
@@ -220,7 +222,8 @@ def psnr_of_channels(
 
     def measure(channels: np.ndarray) -> float:
         channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
-        rmse = float(np.sqrt(_normal_map_sse(planes, channels, 2**depth - 1 if depth else 0, equidistant) / samples))
+        sse = _normal_map_sse(planes, channels, 2**depth - 1 if depth else 0, equidistant)
+        rmse = float(np.sqrt(sse / samples))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
     return measure
