@@ -17,7 +17,7 @@ The other maps (three channels of unit vectors, all with ``z >= 0``) are coded a
 too, but not as ``x, y``: as azimuthal equidistant coordinates (:func:`equidistant`), the
 normal's angle to +z along its direction in the plane. ``x = sin(angle)`` flattens the steep
 normals: there a tilt moves ``x, y`` little and ``z`` fast, so an error in ``x, y`` grows by
-``1 / z`` on the vector (2.8 times at 70 degrees), and the coder spends its bits where the
+``1 / z`` on the vector (2.9 times at 70 degrees), and the coder spends its bits where the
 normals are flat. The angle itself turns every tilt into the same step, as the error on the
 unit vectors measures it. The gain is largest where the normals are steep (format version 11;
 figures in BENCHMARKS, "Azimuthal equidistant coordinates").
