@@ -46,10 +46,13 @@ hold around the square, and the signs of the two channels' coefficients square b
 normal map coded with its three channels (in local frames) be lifted along directions, computes
 the restoration's gradient in float32 (the steps' images too, where the samples' scale allows:
 :data:`bandelets.restoration.SINGLE_UP_TO`), and has its encoder write the fewest restoration
-iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`). This
-build reads version 10 only.
+iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`).
+Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
+equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``.
+This build reads version 11 only.
 
-The layout of a normal map's source, which the decoder returns (no effect on the coding):
+The layout of a normal map's source, which the decoder returns (since version 11 it also says
+how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for the others):
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
 only R and G were normal components (a BC5-style map whose blue holds something else, such as
 ambient occlusion): the decoder returns ``x, y, z``. The layouts other than ``xyz`` were added
