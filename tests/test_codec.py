@@ -429,3 +429,12 @@ def test_xy_beyond_the_rim_are_coded_as_given(crease_map):
     xy[:8] = [0.8, 0.7]  # |x, y| = 1.06
     decoded = bandelets.decode(bandelets.encode(xy, threshold=2e-4, kind="normal-map", restore=False))
     assert metrics.angular_error(xy[:8], decoded[:8]).max < 0.1
+
+
+def test_maps_facing_one_way_are_coded_as_two_channels():
+    from bandelets.normalmaps import ONE_WAY
+
+    for angle, channels in ((0.9 * ONE_WAY, 2), (1.1 * ONE_WAY, 3)):
+        tilt = np.broadcast_to(np.linspace(0.0, angle, 32), (32, 32))  # turning about y, left to right
+        normals = np.stack([np.sin(tilt), np.zeros_like(tilt), np.cos(tilt)], axis=-1)
+        assert unpack(bandelets.encode(normals, bpp=2.0, kind="normal-map"))[0].channels == channels

@@ -23,8 +23,8 @@ Layout (little endian)::
     42/56   ...   the three streams
     end-4   4     CRC32 of everything before it
 
-A normal map whose every vector has ``z >= 0`` (tangent-space and height-field maps) is
-coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
+Until version 10, a normal map whose every vector has ``z >= 0`` (tangent-space and height-field
+maps) was coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
 (format version 2; version 1 always coded three channels). Format version 3 added the
 restoration byte; version 4 changed the restoration's penalty (a log total variation instead of
 the total variation) and restores a normal map coded with its three channels on the unit sphere
@@ -48,7 +48,8 @@ the restoration's gradient in float32 (the steps' images too, where the samples'
 :data:`bandelets.restoration.SINGLE_UP_TO`), and has its encoder write the fewest restoration
 iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`).
 Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
-equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``.
+equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``,
+and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_WAY` of +z.
 This build reads version 11 only.
 
 The layout of a normal map's source, which the decoder returns (since version 11 it also says

@@ -186,8 +186,9 @@ def encode(
     array : array_like, shape (H, W) or (H, W, C), C <= 4
         Values as they are (a normal map: vectors in [-1, 1], uint8 / uint16 samples, or
         ``x, y`` alone; a geometry image: positions).
-        A normal map whose vectors all have ``z >= 0`` is coded as ``x, y`` only (its decoder
-        rebuilds ``z``); otherwise as three channels, in local frames around the coarser
+        A normal map whose vectors all lie within :data:`bandelets.normalmaps.ONE_WAY` of +z is
+        coded as two channels (:func:`bandelets.normalmaps.equidistant`; ``x, y`` for an ``x, y``
+        source); otherwise as three channels, in local frames around the coarser
         decoded normals (:mod:`bandelets.frames`, normal weight
         :data:`bandelets.bitstream.NORMAL_MAP_WEIGHT`).
     bpp, threshold, psnr, max_angle : float, exactly one
@@ -329,9 +330,9 @@ def encode_with_stats(
     if options.extension == "spherical":  # no padding: the fold must stay on the image's border
         while levels > 1 and x.shape[0] % (1 << levels):
             levels -= 1
-    # A unit normal with z >= 0 is fixed by two numbers: z costs no bits. They are its azimuthal
-    # equidistant coordinates (see bandelets.normalmaps), or x, y as given (BC5 sources).
-    two = kind == "normal-map" and (layout != "xyz" or np.all(x[..., 2] >= 0))
+    # A map of normals that face one way is coded as two channels: the azimuthal equidistant
+    # coordinates of its vectors (see bandelets.normalmaps), or x, y as given (BC5 sources).
+    two = kind == "normal-map" and (layout != "xyz" or normalmaps.faces_one_way(x))
     equidistant = two and layout == "xyz"
     coded = (normalmaps.equidistant(x) if layout == "xyz" else given[..., :2]) if two else x
     # A normal map read from integer samples was converted to floats: that copy is not held.

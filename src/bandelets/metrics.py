@@ -14,9 +14,6 @@ from numba import njit
 
 from .files import as_read
 
-#: The angle from +z of a normal on the horizon: where equidistant coordinates are held.
-HALF_PI = np.pi / 2
-
 __all__ = [
     "AngularError",
     "angles",
@@ -75,13 +72,13 @@ def unit_normals(
 def _hemisphere(a, b, equidistant):
     """The normal ``x, y, z`` (not renormalised) that two coded channels stand for: ``x, y`` with
     ``z`` rebuilt (0 outside the unit disc), or azimuthal equidistant coordinates, whose length
-    is the angle to +z, held on the hemisphere (at most pi / 2)."""
+    is the angle to +z (at most pi: a longer decoded one stops at -z rather than wrap around)."""
     if not equidistant:
         return a, b, np.sqrt(max(1.0 - (a * a + b * b), 0.0))
     angle = np.sqrt(a * a + b * b)
     # sin(t) / t, by its series where the division loses digits.
-    shrink = 1.0 - angle * angle / 6.0 if angle < 1e-4 else np.sin(min(angle, HALF_PI)) / angle
-    return a * shrink, b * shrink, np.cos(min(angle, HALF_PI))
+    shrink = 1.0 - angle * angle / 6.0 if angle < 1e-4 else np.sin(min(angle, np.pi)) / angle
+    return a * shrink, b * shrink, np.cos(min(angle, np.pi))
 
 
 @njit(cache=True, nogil=True)

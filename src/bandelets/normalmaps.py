@@ -13,14 +13,15 @@
   acacia map (2 % of its vectors beyond the rim) coding them as given lowers the 99th percentile
   angular error at 4 bpp without restoration from 12.8 to 9.3 degrees.
 
-The other maps (three channels of unit vectors, all with ``z >= 0``) are coded as two channels
-too, but not as ``x, y``: as azimuthal equidistant coordinates (:func:`equidistant`), the
-normal's angle to +z along its direction in the plane. ``x = sin(angle)`` flattens the steep
-normals: there a tilt moves ``x, y`` little and ``z`` fast, so an error in ``x, y`` grows by
-``1 / z`` on the vector (2.9 times at 70 degrees), and the coder spends its bits where the
+The other maps whose normals face one way (every one within :data:`ONE_WAY` of +z:
+tangent-space and height-field maps, object-space maps seen from one side) are coded as two
+channels too, but not as ``x, y``: as azimuthal equidistant coordinates (:func:`equidistant`),
+the normal's angle to +z along its direction in the plane. ``x = sin(angle)`` flattens the
+steep normals: there a tilt moves ``x, y`` little and ``z`` fast, so an error in ``x, y`` grows
+by ``1 / z`` on the vector (2.9 times at 70 degrees), and the coder spends its bits where the
 normals are flat. The angle itself turns every tilt into the same step, as the error on the
-unit vectors measures it. The gain is largest where the normals are steep (format version 11;
-figures in BENCHMARKS, "Azimuthal equidistant coordinates").
+unit vectors measures it, and goes on past the horizon. The gain is largest where the normals
+are steep (format version 11; figures in BENCHMARKS, "Equidistant coordinates").
 """
 
 from __future__ import annotations
@@ -30,7 +31,14 @@ import numpy as np
 from .files import integer_samples
 from .metrics import with_z
 
-__all__ = ["prepare", "equidistant"]
+__all__ = ["ONE_WAY", "prepare", "faces_one_way", "equidistant"]
+
+#: The largest angle to +z of a map coded as two channels of equidistant coordinates, radians.
+#: Towards -z those coordinates stretch (all of -z's neighbourhood is the circle of radius pi):
+#: on the crease and bumps maps turned away from +z, two channels beat three in local frames
+#: at every rate up to 119 to 144 degrees, lose at low rates from 139 to 162 degrees, and lose
+#: at every rate at 158 to 179 (BENCHMARKS, "Equidistant coordinates").
+ONE_WAY = 0.75 * np.pi
 
 
 def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]:
@@ -61,6 +69,11 @@ def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]
     return values, depth, "xyz"
 
 
+def faces_one_way(vectors: np.ndarray) -> bool:
+    """Whether every unit vector of ``vectors`` (..., 3) lies within :data:`ONE_WAY` of +z."""
+    return bool(np.all(vectors[..., 2] >= np.cos(ONE_WAY)))
+
+
 def equidistant(vectors: np.ndarray) -> np.ndarray:
     """Azimuthal equidistant coordinates of unit normals: ``angle * (x, y) / |(x, y)|``, with
     ``angle`` the angle to +z (``bandelets.metrics.unit_normals`` inverts them).
@@ -68,11 +81,11 @@ def equidistant(vectors: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     vectors : ndarray, shape (H, W, 3)
-        Unit vectors with ``z >= 0``.
+        Unit vectors.
 
     Returns
     -------
-    ndarray of float64, shape (H, W, 2), of length at most pi / 2.
+    ndarray of float64, shape (H, W, 2), of length at most pi.
 
     Examples
     --------
@@ -82,6 +95,6 @@ def equidistant(vectors: np.ndarray) -> np.ndarray:
     """
     xy = np.asarray(vectors[..., :2], np.float64)
     across = np.sqrt(np.sum(xy * xy, axis=-1, keepdims=True))
-    angle = np.arctan2(across, np.maximum(vectors[..., 2:3], 0.0))
+    angle = np.arctan2(across, vectors[..., 2:3])
     # angle / sin(angle), 1 at the pole (where xy / across is undefined).
     return xy * np.divide(angle, across, out=np.ones_like(across), where=across > 0)
