@@ -93,12 +93,17 @@ def _unit_normals(channels, out, equidistant):
             else:
                 x, y, z = _hemisphere(x, y, equidistant)
             finite &= np.isfinite(x) and np.isfinite(y)
-            norm = np.sqrt(x * x + y * y + z * z)
-            if norm > 0:
-                out[i, j, 0], out[i, j, 1], out[i, j, 2] = x / norm, y / norm, z / norm
-            else:
-                out[i, j, 0], out[i, j, 1], out[i, j, 2] = x, y, 1.0
+            out[i, j, 0], out[i, j, 1], out[i, j, 2] = _unit(x, y, z)
     return finite
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _unit(a, b, c):
+    """``a, b, c`` scaled to unit length; a zero vector becomes +z (as :func:`unit_vectors`)."""
+    norm = np.sqrt(a * a + b * b + c * c)
+    if norm > 0:
+        return a / norm, b / norm, c / norm
+    return a, b, 1.0
 
 
 class AngularError(NamedTuple):
@@ -164,9 +169,11 @@ def peak(reference: np.ndarray, kind: str = "image") -> float:
 def psnr(reference: np.ndarray, decoded: np.ndarray, kind: str = "image") -> float:
     """``20 log10(peak / RMSE)`` in dB (``inf`` when equal).
 
-    For a normal map both arrays are compared after renormalising the reference to unit
-    vectors (the decoder already renormalises), as the paper measures; a map of shape
-    (H, W, 2) holds ``x, y`` (:func:`with_z`).
+    For a normal map both arrays are compared after renormalising them to unit vectors, as the
+    paper measures; a map of shape (H, W, 2) holds ``x, y`` (:func:`with_z`). The decoder already
+    renormalises, but a decoded map written in 8 or 16-bit samples and read back is no longer of
+    unit length: a renderer renormalises it, and so do the anchors' decoded files
+    (:func:`bandelets.anchors.decode`).
     """
     return psnr_against(reference, kind)(decoded)
 
@@ -184,6 +191,8 @@ def psnr_against(reference: np.ndarray, kind: str = "image") -> Callable[[np.nda
     def measure(decoded: np.ndarray) -> float:
         decoded = np.asarray(decoded, np.float64)
         decoded = (with_z(decoded) if xy else decoded).reshape(reference.shape)
+        if kind == "normal-map":
+            decoded = unit_vectors(decoded)
         rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
@@ -242,13 +251,9 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
     the compiler vectorises."""
     for j in range(errors.shape[0]):
         a, b, c = _hemisphere(x[j], y[j], equidistant) if two else (x[j], y[j], z[j])
-        norm = np.sqrt(a * a + b * b + c * c)
-        unit = norm > 0
-        a = a / norm if unit else a
-        b = b / norm if unit else b
-        c = c / norm if unit else 1.0  # unit_vectors: a zero vector becomes +z
-        if top != 0:
-            a, b, c = _as_sample(a, top), _as_sample(b, top), _as_sample(c, top)
+        a, b, c = _unit(a, b, c)
+        if top != 0:  # written in samples, read back and renormalised (psnr)
+            a, b, c = _unit(_as_sample(a, top), _as_sample(b, top), _as_sample(c, top))
         errors[j] = (r0[j] - a) ** 2 + (r1[j] - b) ** 2 + (r2[j] - c) ** 2
 
 
