@@ -13,6 +13,7 @@ the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). Th
 
 * ``lifting``: ``bandelets encode --kind normal-map --bpp B``, the defaults (CDF 9/7, bandelets,
   restoration, the two finest levels lifted along directions where they pay);
+* ``unfiltered``: the defaults without the loop filter (``--no-loop-filter``);
 * ``bandelet``: the defaults without the directional lifting (``--no-lifting``);
 * ``wavelet``: the same coder without any geometry (``--transform wavelet --no-lifting``);
 * the anchors as :mod:`bandelets.anchors` drives them (8-bit samples, as the PNG): OpenJPEG,
@@ -47,6 +48,7 @@ RATES = (0.25, 0.35, 0.5, 0.71, 1.0, 1.41, 2.0)
 XY_MAPS = ("acacia_door_bottom_n.png",)
 OURS = {
     "lifting": {},
+    "unfiltered": {"loop_filter": False},
     "bandelet": {"lifting": False},
     "wavelet": {"transform": "wavelet", "lifting": False},
 }

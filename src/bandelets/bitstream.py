@@ -17,10 +17,12 @@ Layout (little endian)::
     16      4     width
     20      8     threshold T (float64, MIN_THRESHOLD to MAX_THRESHOLD)
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
-    40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`)
+    40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
+                  if the file has a loop filter (format version 12)
     41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
     42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
     42/56   ...   the three streams
+    ...     ...   the loop filter (format version 12; when byte 40 says so)
     end-4   4     CRC32 of everything before it
 
 Until version 10, a normal map whose every vector has ``z >= 0`` (tangent-space and height-field
@@ -50,7 +52,18 @@ iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION
 Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
 equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``,
 and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_WAY` of +z.
-This build reads version 11 only.
+Version 12 added the loop filter (:mod:`bandelets.loopfilter`), after the streams. This build
+reads version 12 only.
+
+Loop filter (format version 12), between the streams and the CRC when byte 40 says so::
+
+    0       1     radius of the diamond (1 to MAX_FILTER_RADIUS) + 4 if cross-channel taps
+                  (2 or 3 channels only)
+    1       1     shift: a coefficient is its integer over 2**shift (0 to MAX_FILTER_SHIFT)
+    2       1     width: bits of every integer (2 to MAX_FILTER_WIDTH), two's complement
+    3       1     clipping of the differences: 0 none, k (1 to MAX_FILTER_CLIP) to +-T 2**(3 - k)
+    4       ...   the integers of every channel's taps in turn (:func:`filter_offsets`),
+                  most significant bit first, the last byte padded with zeros
 
 The layout of a normal map's source, which the decoder returns (since version 11 it also says
 how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for the others):
@@ -110,6 +123,16 @@ __all__ = [
     "DEFAULT_NORMAL_WEIGHT",
     "MAX_LEVELS",
     "MAX_RESTORATION",
+    "MAX_FILTER_RADIUS",
+    "MAX_FILTER_SHIFT",
+    "MAX_FILTER_WIDTH",
+    "MAX_FILTER_CLIP",
+    "LoopFilter",
+    "FILTER_CROSS_OFFSETS",
+    "filter_offsets",
+    "filter_taps",
+    "filter_bytes",
+    "filter_width",
     "NORMAL_MAP_WEIGHT",
     "MIN_NORMAL_WEIGHT",
     "MAX_NORMAL_WEIGHT",
@@ -128,7 +151,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 11
+FORMAT_VERSION = 12
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -175,6 +198,14 @@ MAX_LEVELS = 6
 MAX_LIFTING = 3
 #: Most restoration iterations a file may ask for (one byte; :mod:`bandelets.restoration`).
 MAX_RESTORATION = 100
+#: Bounds of the loop filter (:class:`LoopFilter`): at most 12 + 8 taps per channel.
+MAX_FILTER_RADIUS, MAX_FILTER_SHIFT, MAX_FILTER_WIDTH, MAX_FILTER_CLIP = 3, 24, 24, 16
+#: Offsets of the loop filter's taps on every other channel, ``(dy, dx) > (0, 0)`` of the 3 x 3
+#: square (:mod:`bandelets.loopfilter`).
+FILTER_CROSS_OFFSETS = ((0, 1), (1, -1), (1, 0), (1, 1))
+#: The largest loop filter section: 4 channels of a diamond of radius 3 (12 taps), or 3 channels
+#: with cross-channel taps (20), at MAX_FILTER_WIDTH bits.
+_MOST_FILTER_BYTES = 4 + (3 * 20 * MAX_FILTER_WIDTH + 7) // 8
 #: Weight of the normal component of the details of a normal map of three channels, coded in
 #: local frames (implied by the kind and the channel count: no header field; chosen in
 #: :mod:`bandelets.frames`).
@@ -211,6 +242,100 @@ class FormatError(ValueError):
 
 
 @dataclass(frozen=True, kw_only=True)
+class LoopFilter:
+    """The loop filter a file holds (:mod:`bandelets.loopfilter`): the shape of every channel's
+    filter and its coefficients, ``coefficients[c * n + t] / 2**shift`` for tap ``t`` of channel
+    ``c``."""
+
+    radius: int
+    cross: bool
+    #: Clipping of the differences: 0 none, ``k`` >= 1 to ``+-T 2**(3 - k)``.
+    clip: int
+    shift: int
+    coefficients: tuple[int, ...]
+
+
+def filter_offsets(radius: int) -> tuple[tuple[int, int], ...]:
+    """The offsets ``(dy, dx) > (0, 0)`` of the diamond ``|dy| + |dx| <= radius``, in row order:
+    one per pair of point-symmetric taps of a loop filter (2, 6, 12 for radius 1, 2, 3)."""
+    return tuple(
+        (dy, dx)
+        for dy in range(radius + 1)
+        for dx in range(-radius, radius + 1)
+        if abs(dy) + abs(dx) <= radius and (dy, dx) > (0, 0)
+    )
+
+
+def filter_taps(radius: int, cross: bool, channels: int) -> int:
+    """Taps of one channel's loop filter: the diamond's, then the other channels' (``cross``)."""
+    return len(filter_offsets(radius)) + (len(FILTER_CROSS_OFFSETS) * (channels - 1) if cross else 0)
+
+
+def filter_width(largest: int) -> int:
+    """Bits of a two's complement integer that holds ``-largest`` to ``largest`` (at least 2)."""
+    return max(int(largest).bit_length() + 1, 2)
+
+
+def filter_bytes(channels: int, taps: int, width: int) -> int:
+    """Bytes of a loop filter section of ``taps`` integers of ``width`` bits per channel."""
+    return 4 + (channels * taps * width + 7) // 8
+
+
+def _pack_filter(loop_filter: LoopFilter, channels: int) -> bytes:
+    """The loop filter section (see the module's docstring)."""
+    f = loop_filter
+    taps = filter_taps(f.radius, f.cross, channels)
+    if not (
+        1 <= f.radius <= MAX_FILTER_RADIUS
+        and (not f.cross or 2 <= channels <= 3)
+        and 0 <= f.shift <= MAX_FILTER_SHIFT
+        and 0 <= f.clip <= MAX_FILTER_CLIP
+        and len(f.coefficients) == channels * taps
+    ):
+        raise ValueError(f"not a loop filter of {channels} channels: {f}")
+    width = filter_width(max((abs(v) for v in f.coefficients), default=0))
+    if width > MAX_FILTER_WIDTH:
+        raise ValueError(f"loop filter coefficients of more than {MAX_FILTER_WIDTH} bits: {f}")
+    bits = "".join(format(v & ((1 << width) - 1), f"0{width}b") for v in f.coefficients)
+    bits += "0" * (-len(bits) % 8)
+    return bytes([f.radius + 4 * f.cross, f.shift, width, f.clip]) + int(bits or "0", 2).to_bytes(
+        len(bits) // 8, "big"
+    )
+
+
+def _unpack_filter(section: bytes, channels: int) -> LoopFilter:
+    """The validated loop filter of a section (:class:`FormatError` when it is not one)."""
+    if len(section) < 4:
+        raise FormatError(f"corrupt .bdl file: a loop filter section of {len(section)} bytes")
+    shape, shift, width, clip = section[:4]
+    radius, cross = shape % 4, shape // 4
+    checks = [
+        (1 <= radius <= MAX_FILTER_RADIUS and cross in (0, 1), f"bad loop filter shape {shape}"),
+        (not cross or 2 <= channels <= 3, f"cross-channel loop filter taps with {channels} channels"),
+        (shift <= MAX_FILTER_SHIFT, f"loop filter shift {shift} (at most {MAX_FILTER_SHIFT})"),
+        (2 <= width <= MAX_FILTER_WIDTH, f"loop filter coefficients of {width} bits"),
+        (clip <= MAX_FILTER_CLIP, f"loop filter clipping {clip} (at most {MAX_FILTER_CLIP})"),
+    ]
+    for ok, message in checks:
+        if not ok:
+            raise FormatError(f"corrupt .bdl file: {message}")
+    count = channels * filter_taps(radius, bool(cross), channels)
+    if len(section) != filter_bytes(channels, count // channels, width):
+        raise FormatError(
+            f"corrupt .bdl file: a loop filter of {count} coefficients of {width} bits "
+            f"in {len(section)} bytes"
+        )
+    value, total = int.from_bytes(section[4:], "big"), 8 * (len(section) - 4)
+    coefficients = []
+    for k in range(count):
+        v = (value >> (total - (k + 1) * width)) & ((1 << width) - 1)
+        coefficients.append(v - (1 << width) if v >> (width - 1) else v)
+    return LoopFilter(
+        radius=radius, cross=bool(cross), clip=clip, shift=shift, coefficients=tuple(coefficients)
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Header:
     """Everything a .bdl file says before its streams (built by keywords)."""
 
@@ -237,6 +362,8 @@ class Header:
     layout: str = "xyz"
     #: Finest wavelet levels lifted along directions (:mod:`bandelets.directional`; 0: none).
     lifting: int = 0
+    #: The loop filter the decoder applies after the restoration (:mod:`bandelets.loopfilter`).
+    loop_filter: LoopFilter | None = None
 
 
 def implied_options(kind: str, channels: int) -> dict:
@@ -282,7 +409,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.width,
         header.threshold,
         *(len(s) for s in streams),
-        header.restoration,
+        header.restoration + (128 if header.loop_filter is not None else 0),
         header.lifting,
     )
     if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
@@ -304,6 +431,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
             EXTENSION_CODES[header.extension], int(header.frames), header.normal_weight, header.mesh_vertices
         )
     body += b"".join(streams)
+    if header.loop_filter is not None:
+        body += _pack_filter(header.loop_filter, header.channels)
     return body + struct.pack("<I", zlib.crc32(body))
 
 
@@ -345,7 +474,7 @@ def unpack(
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
     kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
     height, width, threshold = fields[9:12]
-    lengths, restoration, lifting = fields[12:15], fields[15], fields[16]
+    lengths, restoration, filtered, lifting = fields[12:15], fields[15] % 128, fields[15] // 128, fields[16]
     depth, layout_code = depth % 64, depth // 64
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
@@ -375,8 +504,13 @@ def unpack(
             f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
         ),
         (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
-        (sum(lengths) == len(body) - start, "stream lengths do not match the file size"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
+        (
+            0 < len(body) - start - sum(lengths) <= _MOST_FILTER_BYTES
+            if filtered
+            else sum(lengths) == len(body) - start,
+            "stream lengths do not match the file size",
+        ),
         (
             lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
@@ -395,6 +529,7 @@ def unpack(
         options = _geometry_options(data, wavelet, levels, height, width)
     else:
         options = implied_options(kind, channels)
+    loop_filter = _unpack_filter(body[start + sum(lengths) :], channels) if filtered else None
     header = Header(
         height=height,
         width=width,
@@ -410,6 +545,7 @@ def unpack(
         restoration=restoration,
         layout=layout,
         lifting=lifting,
+        loop_filter=loop_filter,
     )
     streams = []
     for n in lengths:

@@ -110,6 +110,12 @@ def _build_parser() -> argparse.ArgumentParser:
         help="decode by plain dequantization: no restoration by the decoder (faster to encode and decode)",
     )
     p.add_argument(
+        "--no-loop-filter",
+        action="store_true",
+        help="write no loop filter (a few dozen bytes the encoder fits so that the decoder sharpens the "
+        "restored image; by default written where it pays)",
+    )
+    p.add_argument(
         "--lifting",
         action=argparse.BooleanOptionalAction,
         default=None,
@@ -137,7 +143,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--no-restore",
         action="store_true",
-        help="skip the restoration the file asks for: a faster decode of lower quality (a preview)",
+        help="skip the restoration and the loop filter the file asks for: a faster decode of lower quality "
+        "(a preview)",
     )
     _common(p)
 
@@ -362,6 +369,7 @@ def _encode(args) -> None:
         transform_1d=args.transform_1d,
         depth=depth,
         restore=not args.no_restore,
+        loop_filter=not args.no_loop_filter,
         progress=sys.stderr.isatty() and not args.quiet,
         max_memory=args.max_memory,
         xy=args.xy,
@@ -449,6 +457,13 @@ def _info(args) -> None:
         "threshold": header.threshold,
         "restoration": header.restoration,
         "lifting_levels": header.lifting,
+        "loop_filter": None
+        if header.loop_filter is None
+        else {
+            "radius": header.loop_filter.radius,
+            "cross_channel": header.loop_filter.cross,
+            "clip": header.loop_filter.clip,
+        },
         "bytes": len(data),
         "bpp": bits_per_pixel(len(data), (header.height, header.width)),
         "bits": {

@@ -1,4 +1,4 @@
-"""Decoding of .bdl files: parse, entropy-decode, dequantize, restore, invert the transform.
+"""Decoding of .bdl files: parse, entropy-decode, dequantize, restore, invert the transform, filter.
 
 The encoder chooses the number of restoration iterations with :func:`restorations` and
 :func:`decoded_image`, so that it measures exactly what the decoder returns.
@@ -12,7 +12,7 @@ from itertools import islice
 
 import numpy as np
 
-from . import directional, entropy, frames, metrics, restoration, tiling
+from . import directional, entropy, frames, loopfilter, metrics, restoration, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
 from .coding import code_image, code_lifting, new_coders
@@ -48,7 +48,8 @@ def decode(
     data : bytes
         The whole file.
     restore : bool
-        Run the restoration iterations the file asks for (:mod:`bandelets.restoration`).
+        Run the restoration iterations and the loop filter the file asks for
+        (:mod:`bandelets.restoration`, :mod:`bandelets.loopfilter`).
         False: plain dequantization, a faster decode of lower quality (a preview).
     max_memory : int
         Refuse a file whose decoding needs more than this many bytes (estimated from its
@@ -116,11 +117,15 @@ def decode_parsed(
 ) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack` (options of :func:`decode`)."""
     if not restore:
-        header = replace(header, restoration=0)
+        header = replace(header, restoration=0, loop_filter=None)
     check_memory(header, max_memory)
     check_work(header, max_work)
     trees, quantized, lifting = decoded_bins(header, streams)
     channels = next(islice(restorations(header, trees, quantized, lifting), header.restoration, None))
+    if header.loop_filter is not None:
+        channels = loopfilter.apply(
+            channels, header.loop_filter, header.threshold, header.height, header.width
+        )
     return decoded_image(channels, header)
 
 

@@ -12,7 +12,7 @@ from typing import Literal
 
 import numpy as np
 
-from . import directional, frames, metrics, normalmaps, ratecontrol, tiling
+from . import directional, frames, loopfilter, metrics, normalmaps, ratecontrol, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
@@ -172,6 +172,7 @@ def encode(
     normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     extension: str = "symmetric",
     restore: bool = True,
+    loop_filter: bool = True,
     lifting: bool | None = None,
     progress: bool = False,
     max_memory: int = MAX_MEMORY,
@@ -225,6 +226,10 @@ def encode(
         iterations as bring it closest to ``array`` (none if that is best).
         Costs no bits; the encoder and decoder then take longer (about 1.6 ms of CPU per
         iteration for 256 x 256 x 2, 6.5 ms for 512 x 512 x 2).
+    loop_filter : bool
+        Let the decoder filter the (restored) image with a small filter the encoder fits to
+        ``array`` and writes into the file (:mod:`bandelets.loopfilter`), where it pays for its
+        bytes (a few dozen). Not in tiled files.
     lifting : bool, optional
         Lift the finest :data:`bandelets.directional.LEVELS` wavelet levels along directions
         chosen per block (:mod:`bandelets.directional`; cdf97, not for a geometry image):
@@ -282,6 +287,7 @@ def encode(
         normal_weight=normal_weight,
         extension=extension,
         restore=restore,
+        loop_filter=loop_filter,
         lifting=lifting,
         progress=progress,
         max_memory=max_memory,
@@ -372,7 +378,9 @@ def encode_with_stats(
     del magnitudes
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     del x
-    measure_channels = None
+    measure_channels = targets = to_error = None
+    # Bytes the loop filter may take: a rate target keeps some aside (None: no limit).
+    filter_budget = None
     # The decoded image is kept for the caller (measured) or the angular target.
     keep = measured or max_angle is not None
     # A copy of the reference, made when first needed (not by a rate target with the restoration).
@@ -388,14 +396,22 @@ def encode_with_stats(
         """Before rate control: lift along directions chosen for ``t`` (None: no lifting) where
         they pay (:func:`_lifted`), make the restoration's measure, and let go of the source
         where it is not measured again (one large array at a time: the peak of large images)."""
-        nonlocal coefficients, lifting, lifting_levels, coded, reference, measure_channels
+        nonlocal coefficients, lifting, lifting_levels, coded, reference, measure_channels, targets, to_error
         if lifting_levels and t is not None:
             coefficients, lifting, lifting_levels = _lifted(
                 coded, coefficients, levels, lifting_levels, t, options.lifting is None
             )
         coded = None
-        if options.restore:  # what the user gets: the decoded values written at the source's depth
+        if options.restore or options.loop_filter:  # what the user gets: the values written at its depth
             measure_channels = metrics.psnr_of_channels(reference, kind, depth, equidistant)
+        if options.loop_filter:  # what the coded channels stand for, and the error of a PSNR
+            planes = (
+                normalmaps.equidistant(reference) if equidistant else reference.reshape(height, width, -1)
+            )
+            targets = np.ascontiguousarray(np.moveaxis(planes[..., :channels], -1, 0))
+            top = metrics.peak(reference, kind)
+            samples = height * width * (3 if kind == "normal-map" else channels)
+            to_error = lambda p: 0.0 if p == float("inf") else samples * top**2 * 10.0 ** (-p / 10.0)  # noqa: E731
         # Rate control holds the source only where it measures a decoded image against it: a
         # quality target, or a measured encode without the restoration.
         if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
@@ -412,8 +428,15 @@ def encode_with_stats(
     with Progress(options.progress) as line:
 
         def finished(encoded: Encoded) -> Encoded:
-            if options.restore:
-                encoded = _with_restoration(encoded, measure_channels, options, line, keep)
+            if options.restore or options.loop_filter:
+                encoded, channels = _with_restoration(
+                    encoded, measure_channels, options, line, keep and not options.loop_filter
+                )
+                if options.loop_filter:
+                    budget = None if filter_budget is None else filter_budget - len(encoded.data)
+                    encoded = _with_loop_filter(
+                        encoded, channels, targets, measure_channels, to_error, budget, keep
+                    )
             elif measured:
                 out = decoded(encoded)
                 encoded = replace(encoded, psnr=measure(out), decoded=out)
@@ -437,8 +460,12 @@ def encode_with_stats(
                     f"target of {bpp:g} bpp ({target} bytes) cannot be reached: a .bdl file needs at "
                     f"least {HEADER_BYTES} bytes of header"
                 )
-            prepare(ratecontrol.first_threshold(target, t_max, model) if lifting_levels else None)
-            return finished(ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD))
+            # Room is left for the loop filter's bytes (what the file does not take of it is lost).
+            room = loopfilter.reserve(channels) if options.loop_filter else 0
+            filter_budget = target
+            prepare(ratecontrol.first_threshold(target - room, t_max, model) if lifting_levels else None)
+            kept = ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD, room)
+            return finished(kept)
         if max_angle is not None:
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
             goal, t_guess = -20.0 * np.log10(max_angle), min(t_max, np.radians(max_angle))
@@ -508,45 +535,77 @@ _RESTORATION_PATIENCE = 10
 #: the best: on the 512 x 512 crease map at 1 bpp 39 iterations instead of 45 keep 97 % of 5.9 dB,
 #: and decode 13 % faster).
 RESTORATION_SHARE = 0.97
+#: Bytes of the restored channels the encoder keeps copies of while it searches (the last
+#: iterations'), so that the channels of the count chosen need not be made again.
+_KEPT_BYTES = 64 * 2**20
 
 
 def _with_restoration(
     encoded: Encoded, measure, options: EncodeOptions, line: Progress, keep: bool
-) -> Encoded:
+) -> tuple[Encoded, np.ndarray]:
     """``encoded`` with the fewest restoration iterations whose decoded channels keep
     :data:`RESTORATION_SHARE` of the best gain in score by ``measure``
     (:func:`bandelets.metrics.psnr_of_channels`) written into its header (at most as many as
-    ``options.max_work`` allows a decoder), that score and (``keep``) that decoded image."""
+    ``options.max_work`` allows a decoder; none without ``options.restore``), that score and
+    (``keep``) that decoded image; and the decoded channels (C, H', W')."""
     header = encoded.header
-    try:
-        check_memory(replace(header, restoration=1), options.max_memory)
-    except FormatError:  # the decoder could not afford it either
-        return encoded
-    most = min(MAX_RESTORATION, options.max_work // restoration_work(replace(header, restoration=1)))
+    most = 0
+    if options.restore:
+        try:
+            check_memory(replace(header, restoration=1), options.max_memory)
+            most = min(MAX_RESTORATION, options.max_work // restoration_work(replace(header, restoration=1)))
+        except FormatError:  # the decoder could not afford it either
+            pass
     scores: list[float] = []
+    # Copies of the last iterations' channels, where they take at most _KEPT_BYTES: the one chosen
+    # is then not made again.
+    kept: dict[int, np.ndarray] = {}
     line.stage("restoration search", restart=True)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins, encoded.lifting)):
         scores.append(measure(channels))
         line.step(f"T={header.threshold:.3g}: {scores[-1]:.2f} dB")
-        if n == most or n - int(np.argmax(scores)) >= _RESTORATION_PATIENCE:
+        if n >= most or n - int(np.argmax(scores)) >= _RESTORATION_PATIENCE:
             break
+        room = _KEPT_BYTES // channels.nbytes
+        if room:
+            kept.pop(n - room, None)
+            kept[n] = channels.copy()
     line.stage("rate control")
     best = int(np.argmax(scores))
     if best > 0:  # the fewest iterations that keep the share (the plain decoding if no gain)
         best = next(
             n for n, s in enumerate(scores) if s - scores[0] >= RESTORATION_SHARE * (scores[best] - scores[0])
         )
-    best_output = None
-    if keep:  # the iterations work in place: made again up to the count chosen
+    if best in kept:
+        channels = kept[best]
+    elif best != len(scores) - 1:  # the iterations work in place: made again up to the count chosen
         channels = next(
             islice(restorations(header, encoded.trees, encoded.bins, encoded.lifting), best, None)
         )
-        best_output = decoded_image(channels, header)
+    output = decoded_image(channels, header) if keep else None
     if best == 0:
-        return replace(encoded, psnr=scores[0], decoded=best_output)
+        return replace(encoded, psnr=scores[0], decoded=output), channels
     header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
     data = pack(replace(header, restoration=best), streams)
-    return replace(encoded, data=data, psnr=scores[best], decoded=best_output)
+    return replace(encoded, data=data, psnr=scores[best], decoded=output), channels
+
+
+def _with_loop_filter(
+    encoded: Encoded, channels: np.ndarray, targets: np.ndarray, measure, to_error, budget, keep: bool
+) -> Encoded:
+    """``encoded`` with the loop filter :func:`bandelets.loopfilter.choose` finds for its decoded
+    ``channels`` against ``targets`` (none if none pays; at most ``budget`` bytes), its score by
+    ``measure`` and (``keep``) its decoded image; ``to_error``: a score to the squared error."""
+    header = encoded.header
+    found, filtered = loopfilter.choose(
+        channels, targets, header.threshold, LAMBDA, lambda c: to_error(measure(c)), budget
+    )
+    if found is None:
+        return replace(encoded, decoded=decoded_image(channels, header) if keep else None)
+    header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
+    data = pack(replace(header, loop_filter=found), streams)
+    output = decoded_image(filtered, header) if keep else None
+    return replace(encoded, data=data, psnr=measure(filtered), decoded=output)
 
 
 #: CDF 9/7 is best on smooth content; Haar on piecewise-constant content (the facets of a CAD

@@ -78,6 +78,7 @@ class EncodeOptions:
     normal_weight: float = DEFAULT_NORMAL_WEIGHT
     extension: str = "symmetric"
     restore: bool = True
+    loop_filter: bool = True
     lifting: bool | None = None
     progress: bool = False
     max_memory: int = MAX_MEMORY

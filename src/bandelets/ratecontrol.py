@@ -149,8 +149,10 @@ def for_size(
     model: Callable,
     progress: Progress | None = None,
     t_min: float = 0.0,
+    room: int = 0,
 ):
-    """Largest file of at most ``target_bytes`` bytes, by a model-guided secant search on ``log T``.
+    """Largest file of at most ``target_bytes - room`` bytes, by a model-guided secant search on
+    ``log T``.
 
     Parameters
     ----------
@@ -166,6 +168,10 @@ def for_size(
         Counts the encodings (:class:`bandelets.progress.Progress`).
     t_min : float
         The smallest threshold to try (at most ``t_max``).
+    room : int
+        Bytes to leave free below the target (the loop filter's, :mod:`bandelets.loopfilter`),
+        at most ``SIZE_TOLERANCE / 2`` of it: the file lands in ``[(1 - SIZE_TOLERANCE) target,
+        target - room]``, within the tolerance whether or not the room is taken.
 
     Returns
     -------
@@ -179,7 +185,9 @@ def for_size(
     """
     best = None
     floor = math.log(max(_SMALLEST * t_max, t_min))
-    goal = math.log((1 - SIZE_TOLERANCE / 2) * target_bytes)
+    room = min(max(int(room), 0), int(SIZE_TOLERANCE / 2 * target_bytes))
+    goal = math.log((1 - SIZE_TOLERANCE / 2) * target_bytes - room / 2)
+    largest = target_bytes - room
 
     def measure(x):
         nonlocal best
@@ -187,18 +195,16 @@ def for_size(
         size = len(result.data)
         if progress is not None:
             progress.step(f"T={math.exp(x):.3g}: {size} bytes")
-        if size <= target_bytes and (best is None or size > len(best.data)):
+        if size <= largest and (best is None or size > len(best.data)):
             best = result
-        if size > target_bytes and x >= math.log(t_max):
+        if size > largest and x >= math.log(t_max):
             raise ValueError(
                 f"target of {target_bytes} bytes cannot be reached: the smallest file is {size} bytes"
             )
-        done = (1 - SIZE_TOLERANCE) * target_bytes <= size <= target_bytes or (
-            size < target_bytes and x <= floor
-        )
-        return math.log(size), done, size > target_bytes
+        done = (1 - SIZE_TOLERANCE) * target_bytes <= size <= largest or (size < largest and x <= floor)
+        return math.log(size), done, size > largest
 
-    start = math.log(first_threshold(target_bytes, t_max, model))
+    start = math.log(first_threshold(target_bytes - room, t_max, model))
     _search(measure, goal, start, floor, math.log(t_max), model, 0.0)
     if best is None:  # the search wandered: the smallest file is the answer, if it fits
         measure(math.log(t_max))

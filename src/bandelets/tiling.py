@@ -322,7 +322,8 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
         grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, grid.tile
     )
     kind = options.kind
-    tile_options = replace(options, progress=False, tile=grid.tile)
+    # No loop filter: its bytes would come after the search of the threshold of every tile.
+    tile_options = replace(options, progress=False, tile=grid.tile, loop_filter=False)
 
     def coded(box, t: float, restore: bool, keep: bool, unrestored: _Tile | None) -> _Tile:
         tile = source[box]

@@ -46,6 +46,14 @@ def facing_away_16() -> np.ndarray:
     return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
 
 
+def bumps_32() -> np.ndarray:
+    """32 x 32 normal map of a smooth bumpy height (a loop filter pays on it)."""
+    y, x = np.mgrid[0:32, 0:32].astype(np.float64)
+    gy, gx = np.gradient(0.8 * np.sin(x / 2.3) * np.cos(y / 3.1) + 0.5 * np.sin((x + 2 * y) / 4.0))
+    n = np.stack([-gx, -gy, np.ones_like(x)], axis=-1)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
 def geometry_image_32() -> np.ndarray:
     """32 x 32 geometry image: positions of a bumped sphere patch."""
     v, u = np.mgrid[0:32, 0:32].astype(np.float64) / 31.0
@@ -77,6 +85,7 @@ GOLDEN = {
         facing_away_16,
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
+    "bumps32.bdl": (bumps_32, {"threshold": 0.05, "kind": "normal-map", "transform": "bandelet"}),
     "geometry32.bdl": (
         geometry_image_32,
         {"threshold": 0.002, "kind": "geometry-image", "transform": "wavelet"},

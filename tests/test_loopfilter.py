@@ -1,0 +1,167 @@
+"""The loop filter: its section read back bit-exactly, hostile sections refused, and the encoder's
+choice never worse than no filter at the price of its bytes."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import bandelets
+from bandelets import loopfilter
+from bandelets.bitstream import (
+    MAX_FILTER_CLIP,
+    MAX_FILTER_SHIFT,
+    MAX_FILTER_WIDTH,
+    FormatError,
+    Header,
+    LoopFilter,
+    filter_taps,
+    pack,
+    unpack,
+)
+from bandelets.decoder import decode_parsed
+from bandelets.encoder import encode_with_stats
+from bandelets.lagrangian import LAMBDA
+from bandelets.metrics import psnr
+from bandelets.options import EncodeOptions
+from bandelets.samples import bump_normal_map, crease_normal_map
+
+
+def _header(channels: int = 2, loop_filter: LoopFilter | None = None) -> Header:
+    return Header(
+        height=8,
+        width=8,
+        channels=channels,
+        kind="normal-map" if channels == 2 else "image",
+        transform="bandelet",
+        wavelet="cdf97",
+        levels=1,
+        threshold=0.5,
+        loop_filter=loop_filter,
+    )
+
+
+@pytest.mark.parametrize(
+    ("radius", "cross", "channels"), [(1, False, 1), (2, False, 2), (3, True, 2), (3, True, 3)]
+)
+def test_a_filter_is_read_back_bit_exactly(radius, cross, channels):
+    rng = np.random.default_rng(radius + channels)
+    count = channels * filter_taps(radius, cross, channels)
+    for largest in (1, 100, 2**MAX_FILTER_WIDTH // 2 - 1):
+        coefficients = tuple(int(v) for v in rng.integers(-largest, largest + 1, count))
+        f = LoopFilter(radius=radius, cross=cross, clip=largest % 7, shift=11, coefficients=coefficients)
+        header = _header(channels, f)
+        data = pack(header, (b"", b"", b"ab"))
+        assert unpack(data) == (header, (b"", b"", b"ab"))
+
+
+def test_the_encoders_filter_is_what_the_decoder_applies():
+    x = bump_normal_map(96)
+    encoded = encode_with_stats(x, EncodeOptions(kind="normal-map"), bpp=1.0, measured=True)
+    header, _ = unpack(encoded.data)
+    assert header.loop_filter is not None
+    decoded = bandelets.decode(encoded.data)
+    np.testing.assert_array_equal(decoded, encoded.decoded)
+    assert psnr(x, decoded, "normal-map") == pytest.approx(encoded.psnr, abs=1e-6)
+    # Without the restoration (a preview), the filter is not applied either.
+    preview = bandelets.decode(encoded.data, restore=False)
+    unfiltered = unpack(pack(replace(header, restoration=0, loop_filter=None), unpack(encoded.data)[1]))
+    np.testing.assert_array_equal(preview, decode_parsed(*unfiltered))
+
+
+def _section(data: bytes, section: bytes) -> bytes:
+    """``data`` (a file without a filter) with ``section`` after its streams, the flag of a loop
+    filter set (byte 40), a valid CRC."""
+    body = bytearray(data[:-4] + section)
+    body[40] |= 128
+    return bytes(body) + struct.pack("<I", zlib.crc32(body))
+
+
+@pytest.fixture(scope="module")
+def plain_file():
+    x = crease_normal_map(32)
+    return bandelets.encode(x, threshold=0.05, kind="normal-map", loop_filter=False)
+
+
+@pytest.mark.parametrize(
+    ("section", "words"),
+    [
+        (b"", "stream lengths"),  # the flag without a section
+        (b"\x03", "section of 1 bytes"),
+        (bytes([3 + 8, 8, 8, 0]) + bytes(100), "shape"),  # radius 3 with a flag that does not exist
+        (bytes([0, 8, 8, 0]) + bytes(100), "shape"),  # radius 0
+        (bytes([3, MAX_FILTER_SHIFT + 1, 8, 0]) + bytes(24), "shift"),
+        (bytes([3, 8, 1, 0]) + bytes(6), "bits"),
+        (bytes([3, 8, MAX_FILTER_WIDTH + 1, 0]) + bytes(100), "bits"),
+        (bytes([3, 8, 8, MAX_FILTER_CLIP + 1]) + bytes(24), "clipping"),
+        (bytes([3, 8, 8, 0]) + bytes(25), "24 coefficients of 8 bits in 29 bytes"),
+        (bytes([3, 8, 8, 0]) + bytes(2**20), "stream lengths"),  # a huge section
+    ],
+    ids=["none", "short", "flag", "radius", "shift", "narrow", "wide", "clip", "length", "huge"],
+)
+def test_hostile_filter_sections_are_format_errors(plain_file, section, words):
+    assert unpack(plain_file)[0].loop_filter is None
+    with pytest.raises(FormatError, match=words):
+        bandelets.decode(_section(plain_file, section))
+
+
+def test_cross_channel_taps_need_two_or_three_channels():
+    image = np.random.default_rng(1).random((16, 16))
+    data = bandelets.encode(image, threshold=0.1, loop_filter=False)
+    with pytest.raises(FormatError, match="cross-channel"):
+        bandelets.decode(_section(data, bytes([3 + 4, 8, 8, 0]) + bytes(16)))
+    with pytest.raises(ValueError, match="not a loop filter"):
+        pack(
+            _header(1, LoopFilter(radius=1, cross=True, clip=0, shift=8, coefficients=(0, 0))),
+            (b"", b"", b""),
+        )
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: crease_normal_map(64),
+        lambda: bump_normal_map(64),
+        lambda: np.random.default_rng(3).random((48, 40)),  # noise: nothing to learn
+        lambda: np.linspace(0, 1, 48 * 40).reshape(48, 40),
+    ],
+)
+@pytest.mark.parametrize("threshold", [0.02, 0.2])
+def test_a_filter_is_written_only_where_it_pays_for_its_bytes(make, threshold):
+    x = make()
+    kind = "normal-map" if x.ndim == 3 else "image"
+    without = bandelets.encode(x, threshold=threshold, kind=kind, loop_filter=False)
+    with_filter = bandelets.encode(x, threshold=threshold, kind=kind)
+    header, streams = unpack(with_filter)
+    assert unpack(without) == (replace(header, loop_filter=None), streams)  # same streams
+    extra = 8 * (len(with_filter) - len(without))
+    if header.loop_filter is None:
+        assert extra == 0
+        return
+    # The squared error (as the PSNR counts it) falls by more than the price of the bytes.
+    p, q = (psnr(x, bandelets.decode(d), kind) for d in (without, with_filter))
+    samples = x.size if kind == "image" else x.shape[0] * x.shape[1] * 3
+    top = np.ptp(x) if kind == "image" else 1.0
+    error = [samples * top**2 * 10 ** (-v / 10) for v in (p, q)]
+    assert error[0] - error[1] > LAMBDA * threshold**2 * extra * (1 - 1e-9)
+    assert q > p
+
+
+def test_a_rate_target_counts_the_filters_bytes():
+    x = bump_normal_map(96)
+    filtered = 0
+    for bpp in (0.5, 1.0, 2.0):
+        data = bandelets.encode(x, bpp=bpp, kind="normal-map")
+        filtered += unpack(data)[0].loop_filter is not None
+        assert 8 * len(data) <= bpp * 96 * 96
+    assert filtered >= 2
+
+
+def test_a_flat_image_gets_no_filter():
+    data = bandelets.encode(np.full((16, 16), 0.5), threshold=0.01)
+    assert unpack(data)[0].loop_filter is None
+    assert loopfilter.reserve(2) > 0
