@@ -40,8 +40,9 @@ dB unclipped, 0.15 at ``T / 4``): the encoder chooses (``scratch`` measurements 
 restored channels, coefficients unrounded).
 
 Written here because the filter is a handful of compiled loops over the image (scipy's
-``correlate`` would need a pass per tap and a copy per shifted channel, and the least squares
-problem is 20 unknowns from the normal equations, which numpy solves).
+``correlate`` would need a pass per tap and a copy per shifted channel, and clips nothing); the
+normal equations are numpy's products of the features, the least squares of at most 20 unknowns
+numpy's solve.
 """
 
 from __future__ import annotations
@@ -112,28 +113,48 @@ def _feature(x, c, o, dy, dx, i, j, rows, cols, channels, bound):
 
 
 @njit(cache=True, nogil=True)
-def _normal_equations(x, target, table, bound, stride, gram, moment):
-    """``gram[c] = A_c' A_c`` and ``moment[c] = A_c' (target_c - x_c)``, with ``A_c`` the features
-    of channel ``c`` (:func:`_feature`, one row per pixel of every ``stride``-th row), accumulated
-    in one pass."""
+def _features(x, c, table, bound, stride, out):
+    """The features of channel ``c`` (:func:`_feature`) at the pixels of every ``stride``-th row,
+    one column of ``out`` (taps x pixels) per pixel, in row order: along each row tap by tap inside
+    (loops the compiler vectorises), pixel by pixel on the border."""
     channels, rows, cols = x.shape
     n = table.shape[0]
-    f = np.empty(n)
+    r = 0
+    for t in range(n):
+        r = max(r, abs(table[t, 1]), abs(table[t, 2]))
+    for row, i in enumerate(range(0, rows, stride)):
+        p = row * cols
+        inside = r <= i < rows - r
+        if inside:
+            for t in range(n):
+                k, dy, dx = (c + table[t, 0]) % channels, table[t, 1], table[t, 2]
+                above, middle, below, f = x[k, i + dy], x[k, i], x[k, i - dy], out[t, p : p + cols]
+                for j in range(r, cols - r):
+                    v = middle[j]
+                    f[j] = _clipped(above[j + dx] - v, bound) + _clipped(below[j - dx] - v, bound)
+        for j in range(cols):
+            if inside and r <= j < cols - r:
+                continue
+            for t in range(n):
+                out[t, p + j] = _feature(
+                    x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound
+                )
+
+
+def _normal_equations(x, residual, table, bound, stride, f):
+    """``gram[c] = A_c' A_c`` and ``moment[c] = A_c' residual_c``, shapes (C, n, n) and (C, n),
+    with ``A_c`` the features of channel ``c`` of ``x`` at the pixels of every ``stride``-th row
+    (``residual``: the target minus ``x`` there, shape (C, pixels); ``f``: room for ``A_c'`` and
+    one more row), scaled as if from every row: one product of ``A_c'`` and the residual by their
+    transpose."""
+    channels, n = x.shape[0], len(table)
+    gram, moment = np.empty((channels, n, n)), np.empty((channels, n))
     for c in range(channels):
-        for i in range(0, rows, stride):
-            for j in range(cols):
-                for t in range(n):
-                    f[t] = _feature(
-                        x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound
-                    )
-                r = target[c, i, j] - x[c, i, j]
-                for a in range(n):
-                    moment[c, a] += f[a] * r
-                    for b in range(a, n):
-                        gram[c, a, b] += f[a] * f[b]
-        for a in range(n):
-            for b in range(a):
-                gram[c, a, b] = gram[c, b, a]
+        _features(x, c, table, bound, stride, f)
+        f[n] = residual[c]
+        product = f @ f.T
+        gram[c], moment[c] = product[:n, :n], product[:n, n]
+    return gram * stride, moment * stride
 
 
 @njit(cache=True, nogil=True)
@@ -249,13 +270,12 @@ def choose(
     full = _table(*max(shapes, key=lambda shape: filter_taps(*shape, count)), count)
     rows = [tuple(r) for r in full.tolist()]
     picks = {shape: [rows.index(tuple(r)) for r in _table(*shape, count).tolist()] for shape in shapes}
-    n = len(full)
     stride = max(1, height * width // FIT_PIXELS)
+    residual = (target[:, ::stride] - x[:, ::stride]).reshape(count, -1)
+    f = np.empty((len(full) + 1, residual.shape[1]))
     proposal, proposal_cost = None, 0.0
     for clip in CLIPS:
-        gram, moment = np.zeros((count, n, n)), np.zeros((count, n))
-        _normal_equations(x, target, full, clip_bound(clip, threshold), stride, gram, moment)
-        gram, moment = gram * stride, moment * stride  # as if from every row
+        gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride, f)
         for shape, pick in picks.items():
             g, m = gram[:, pick][:, :, pick], moment[:, pick]
             # A touch of ridge: a flat image (no detail at all) has a singular system.
