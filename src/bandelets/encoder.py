@@ -408,7 +408,7 @@ def encode_with_stats(
             planes = (
                 normalmaps.equidistant(reference) if equidistant else reference.reshape(height, width, -1)
             )
-            targets = np.ascontiguousarray(np.moveaxis(planes[..., :channels], -1, 0))
+            targets = np.ascontiguousarray(np.moveaxis(planes[..., :channels], -1, 0), np.float32)
             top = metrics.peak(reference, kind)
             samples = height * width * (3 if kind == "normal-map" else channels)
             to_error = lambda p: 0.0 if p == float("inf") else samples * top**2 * 10.0 ** (-p / 10.0)  # noqa: E731
@@ -496,10 +496,12 @@ def encode_with_stats(
 
 def _read_back(encoded: Encoded) -> Encoded:
     """``encoded`` with the header, quadtrees, bins and directions its file holds, as the decoder
-    reads them."""
+    reads them, and without its loop filter (fitted to the unrestored image: chosen again)."""
     header, streams = unpack(encoded.data, max_side=2**32, max_samples=2**64)
     trees, bins, lifting = decoded_bins(header, streams)
-    return replace(encoded, header=header, trees=trees, bins=bins, lifting=lifting)
+    header = replace(header, loop_filter=None)
+    data = pack(header, streams)
+    return replace(encoded, data=data, header=header, trees=trees, bins=bins, lifting=lifting)
 
 
 def _lifted(
@@ -535,9 +537,10 @@ _RESTORATION_PATIENCE = 10
 #: the best: on the 512 x 512 crease map at 1 bpp 39 iterations instead of 45 keep 97 % of 5.9 dB,
 #: and decode 13 % faster).
 RESTORATION_SHARE = 0.97
-#: Bytes of the restored channels the encoder keeps copies of while it searches (the last
-#: iterations'), so that the channels of the count chosen need not be made again.
-_KEPT_BYTES = 64 * 2**20
+#: Copies of the restored channels the encoder keeps while it searches, so that the channels of
+#: the count chosen need not be made again (for the loop filter): at most _KEPT, of at most
+#: _KEPT_BYTES together (none of a 2048 x 2048 map: made again, the encoder's peak memory stays).
+_KEPT, _KEPT_BYTES = 3, 16 * 2**20
 
 
 def _with_restoration(
@@ -557,8 +560,8 @@ def _with_restoration(
         except FormatError:  # the decoder could not afford it either
             pass
     scores: list[float] = []
-    # Copies of the last iterations' channels, where they take at most _KEPT_BYTES: the one chosen
-    # is then not made again.
+    # Copies of the channels of the iterations that may be chosen (at most _KEPT_BYTES): the one
+    # chosen is then not made again.
     kept: dict[int, np.ndarray] = {}
     line.stage("restoration search", restart=True)
     for n, channels in enumerate(restorations(header, encoded.trees, encoded.bins, encoded.lifting)):
@@ -566,9 +569,11 @@ def _with_restoration(
         line.step(f"T={header.threshold:.3g}: {scores[-1]:.2f} dB")
         if n >= most or n - int(np.argmax(scores)) >= _RESTORATION_PATIENCE:
             break
-        room = _KEPT_BYTES // channels.nbytes
-        if room:
-            kept.pop(n - room, None)
+        # Only the iterations that keep the share of the best gain so far can be the one chosen
+        # (the share of the final best is larger): copies of those, the earliest first.
+        share = scores[0] + RESTORATION_SHARE * (max(scores) - scores[0])
+        kept = {k: c for k, c in kept.items() if scores[k] >= share}
+        if scores[n] >= share and len(kept) < _KEPT and (len(kept) + 1) * channels.nbytes <= _KEPT_BYTES:
             kept[n] = channels.copy()
     line.stage("rate control")
     best = int(np.argmax(scores))

@@ -113,16 +113,16 @@ def _feature(x, c, o, dy, dx, i, j, rows, cols, channels, bound):
 
 
 @njit(cache=True, nogil=True)
-def _features(x, c, table, bound, stride, out):
-    """The features of channel ``c`` (:func:`_feature`) at the pixels of every ``stride``-th row,
-    one column of ``out`` (taps x pixels) per pixel, in row order: along each row tap by tap inside
-    (loops the compiler vectorises), pixel by pixel on the border."""
+def _features(x, c, table, bound, start, stop, stride, out):
+    """The features of channel ``c`` (:func:`_feature`) at the pixels of the rows ``start`` to
+    ``stop`` by ``stride``, one column of ``out`` (taps x pixels) per pixel, in row order: along
+    each row tap by tap inside (loops the compiler vectorises), pixel by pixel on the border."""
     channels, rows, cols = x.shape
     n = table.shape[0]
     r = 0
     for t in range(n):
         r = max(r, abs(table[t, 1]), abs(table[t, 2]))
-    for row, i in enumerate(range(0, rows, stride)):
+    for row, i in enumerate(range(start, stop, stride)):
         p = row * cols
         inside = r <= i < rows - r
         if inside:
@@ -141,20 +141,28 @@ def _features(x, c, table, bound, stride, out):
                 )
 
 
-def _normal_equations(x, residual, table, bound, stride, f):
+def _normal_equations(x, residual, table, bound, stride):
     """``gram[c] = A_c' A_c`` and ``moment[c] = A_c' residual_c``, shapes (C, n, n) and (C, n),
     with ``A_c`` the features of channel ``c`` of ``x`` at the pixels of every ``stride``-th row
-    (``residual``: the target minus ``x`` there, shape (C, pixels); ``f``: room for ``A_c'`` and
-    one more row), scaled as if from every row: one product of ``A_c'`` and the residual by their
-    transpose."""
-    channels, n = x.shape[0], len(table)
-    gram, moment = np.empty((channels, n, n)), np.empty((channels, n))
+    (``residual``: the target minus ``x`` at those rows, shape (C, rows, W)), scaled as if from
+    every row: products of ``A_c'`` and the residual by their transpose, a block of rows at a time
+    (:data:`_BLOCK` pixels)."""
+    channels, rows, cols = x.shape
+    n = len(table)
+    block = max(1, _BLOCK // cols)  # sampled rows a block
+    f = np.empty((n + 1, block * cols))
+    total = np.zeros((channels, n + 1, n + 1))
     for c in range(channels):
-        _features(x, c, table, bound, stride, f)
-        f[n] = residual[c]
-        product = f @ f.T
-        gram[c], moment[c] = product[:n, :n], product[:n, n]
-    return gram * stride, moment * stride
+        for first in range(0, residual.shape[1], block):
+            count = min(block, residual.shape[1] - first) * cols
+            _features(x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f)
+            f[n, :count] = residual[c, first : first + block].ravel()
+            total[c] += f[:, :count] @ f[:, :count].T
+    return total[:, :n, :n] * stride, total[:, :n, n] * stride
+
+
+#: Pixels of a block of the normal equations (:func:`_normal_equations`): 1.4 MB of features.
+_BLOCK = 2**13
 
 
 @njit(cache=True, nogil=True)
@@ -264,18 +272,16 @@ def choose(
     """
     count, height, width = target.shape
     x = np.ascontiguousarray(channels[:, :height, :width], dtype=np.float64)
-    target = np.ascontiguousarray(target, dtype=np.float64)
     price = lam * threshold**2
     shapes = [shape for shape in SHAPES if not shape[1] or 2 <= count <= 3]  # cross: 2 or 3 channels
     full = _table(*max(shapes, key=lambda shape: filter_taps(*shape, count)), count)
     rows = [tuple(r) for r in full.tolist()]
     picks = {shape: [rows.index(tuple(r)) for r in _table(*shape, count).tolist()] for shape in shapes}
     stride = max(1, height * width // FIT_PIXELS)
-    residual = (target[:, ::stride] - x[:, ::stride]).reshape(count, -1)
-    f = np.empty((len(full) + 1, residual.shape[1]))
+    residual = target[:, ::stride] - x[:, ::stride]  # float64, as x
     proposal, proposal_cost = None, 0.0
     for clip in CLIPS:
-        gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride, f)
+        gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride)
         for shape, pick in picks.items():
             g, m = gram[:, pick][:, :, pick], moment[:, pick]
             # A touch of ridge: a flat image (no detail at all) has a singular system.

@@ -258,9 +258,8 @@ def encode_mesh(
         encoder picks the iteration count that lowers the L2 error of the positions, which
         helps the Hausdorff PSNR of CAD meshes (fandisk +1.3 dB BD, up to +2.2 dB at 8 b/v) but
         slides the points of scanned ones along their surface (bunny -0.2 dB): variants
-        ``default,restored`` of benchmarks/rd_meshes.py. The loop filter
-        (:mod:`bandelets.loopfilter`), which also lowers the L2 error of the positions, follows
-        this choice (not measured on the Hausdorff PSNR yet).
+        ``default,restored`` of benchmarks/rd_meshes.py. No loop filter
+        (:mod:`bandelets.loopfilter`) either way: not measured on the Hausdorff PSNR yet.
     image : ndarray of float, shape (n, n, 3), optional
         The geometry image to code, if already made (:func:`make_geometry_image`); it fixes
         the size.
@@ -288,7 +287,7 @@ def encode_mesh(
         normal_weight=normal_weight,
         extension=extension,
         restore=restore,
-        loop_filter=restore,
+        loop_filter=False,
         max_memory=max_memory,
         mesh_vertices=min(len(mesh.vertices), 2**32 - 1),
     )
