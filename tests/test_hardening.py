@@ -71,12 +71,15 @@ def _streams_offset(body: bytes) -> int:
 
 
 def _repaired(body: bytearray) -> bytes:
-    """``body`` with the last stream length fitted to its size (when possible) and a valid CRC."""
+    """``body`` with the last stream length fitted to its size (when possible; a file whose byte 40
+    says it has a loop filter keeps a plausible section after its streams) and a valid CRC."""
     start = _streams_offset(body)
     if len(body) >= start:
-        a, b, _ = struct.unpack_from("<3I", body, 28)
-        if len(body) - start - a - b >= 0:
-            struct.pack_into("<I", body, 36, len(body) - start - a - b)
+        a, b, c = struct.unpack_from("<3I", body, 28)
+        rest = len(body) - start - a - b
+        filtered = len(body) > 40 and body[40] >= 128
+        if rest >= 0 and not (filtered and 0 < rest - c <= 256):
+            struct.pack_into("<I", body, 36, rest)
     return _crc(bytes(body))
 
 
