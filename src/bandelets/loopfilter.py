@@ -36,8 +36,8 @@ bytes.
 The clipping is what makes the filter pay on the real maps: on the lava map (fine bumps at
 every scale) at 2 bpp, a 7 x 7 diamond gains 0.12 dB unclipped, 0.77 dB at ``c = T / 4``; on the
 crease map at 0.35 bpp 0.49 dB unclipped, 0.61 dB at ``2 T``; the smooth bumps want none (0.91
-dB unclipped, 0.15 at ``T / 4``): the encoder chooses (``scratch`` measurements of the
-restored channels, coefficients unrounded).
+dB unclipped, 0.15 at ``T / 4``): the encoder chooses (measured on the restored channels with
+unrounded coefficients; BENCHMARKS.md, "Loop filter", has the files' figures and what lost).
 
 Written here because the filter is a handful of compiled loops over the image (scipy's
 ``correlate`` would need a pass per tap and a copy per shifted channel, and clips nothing); the
