@@ -233,7 +233,7 @@ def best_directions(
                         else:
                             offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
                             geometry = 1.0 if offset == 0 else 3.0 + 2.0 * math.floor(math.log2(offset))
-                            candidate = lam * (model[7] + geometry)
+                            candidate = lam * lagrangian.GEOMETRY_PRICE * (model[7] + geometry)
                         for j in range(len(squares)):
                             candidate += distortion[i, j] + lam * bits[i, j]
                         if candidate < best_cost:

@@ -43,7 +43,15 @@ from .geometry import directions
 from .quadtree import MAX_WIDTH
 from .quantize import bin_and_error
 
-__all__ = ["LAMBDA", "RATE_MODEL", "square_features", "coefficient_bits", "geometry_bits", "best_directions"]
+__all__ = [
+    "LAMBDA",
+    "RATE_MODEL",
+    "GEOMETRY_PRICE",
+    "square_features",
+    "coefficient_bits",
+    "geometry_bits",
+    "best_directions",
+]
 
 #: Squares with more than REFINE_ABOVE directions search every REFINE_STRIDE-th one first,
 #: then refine around the best and around the predicted one (the paper's progressive
@@ -60,6 +68,14 @@ LAMBDA = 3.0 / 28.0
 #: significant coefficient went from 5.9 to 5.5 bits with their contexts of format version 10
 #: (BENCHMARKS, "Contexts for the bandelet coefficients (format version 10)").
 RATE_MODEL = np.array([0.26, 3.73, 0.89, 0.14, 5.5, 0.8, 0.3, 1.0])
+
+#: The geometry (leaves, directions, and the splits of :func:`bandelets.transform.best_trees`) is
+#: charged this many times its modelled bits. The coded geometry costs 1.3 to 1.55 times the
+#: model's leaf bits (crease, bumps and fandisk normal maps at 256, 0.25 to 2 bpp, splits not
+#: counted), and a direction must also repay what the restoration would have recovered without
+#: it: 2 gained +0.03 to +0.08 dB BD-PSNR on every normal map tried (1.5: +0.01 to +0.05; 3 lost
+#: on the crease map what it gained on the bumps), see BENCHMARKS.
+GEOMETRY_PRICE = 2.0
 
 
 @njit(cache=True, nogil=True)
@@ -146,9 +162,10 @@ def coefficient_bits(values: np.ndarray, threshold: float, k: int, model: np.nda
 
 
 def geometry_bits(width: int, model: np.ndarray = RATE_MODEL) -> tuple[float, float]:
-    """Modelled bits of the geometry of a leaf of ``width``: (NULL, any direction)."""
+    """Bits the search charges for the geometry of a leaf of ``width``: (NULL, any direction),
+    :data:`GEOMETRY_PRICE` times the model's."""
     n_dirs = directions(width)[1].shape[0]
-    return float(model[6]), float(model[7] + math.log2(n_dirs))
+    return GEOMETRY_PRICE * float(model[6]), GEOMETRY_PRICE * float(model[7] + math.log2(n_dirs))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -231,7 +248,7 @@ def _best_of_square(
                 candidate = price * direction_bits
             else:
                 offset = abs((d - guess + n_dirs // 2) % n_dirs - n_dirs // 2)
-                candidate = price * (model[7] + _offset_bits(offset))
+                candidate = price * GEOMETRY_PRICE * (model[7] + _offset_bits(offset))
             for k in range(channels):
                 for i in range(n):
                     samples[i] = squares[k, orders[d, i]]

@@ -17,7 +17,7 @@ import numpy as np
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET, Transform1D, Wavelet
 from .geometry import directions, nearest_direction
-from .lagrangian import LAMBDA, best_directions
+from .lagrangian import GEOMETRY_PRICE, LAMBDA, best_directions
 from .options import check_image, check_options, check_threshold
 from .quadtree import MIN_WIDTH, best_quadtree, flat_quadtree, root_width
 from .treecoding import predicted_directions, reference_of
@@ -108,7 +108,7 @@ def best_trees(
             costs.append(cost)
             dirs.append(d)
             width *= 2
-        trees.append(best_quadtree(costs, dirs, LAMBDA * threshold * threshold))
+        trees.append(best_quadtree(costs, dirs, GEOMETRY_PRICE * LAMBDA * threshold * threshold))
     return trees
 
 
