@@ -52,8 +52,9 @@ iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION
 Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
 equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``,
 and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_WAY` of +z.
-Version 12 added the loop filter (:mod:`bandelets.loopfilter`), after the streams. This build
-reads version 12 only.
+Version 12 added the loop filter (:mod:`bandelets.loopfilter`), after the streams. Version 13
+reconstructs a bin at its middle (:data:`bandelets.quantize.RECONSTRUCTION`, 0.44 of the bin
+before). This build reads version 13 only.
 
 Loop filter (format version 12), between the streams and the CRC when byte 40 says so::
 
@@ -151,7 +152,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 12
+FORMAT_VERSION = 13
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
