@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bandelets import entropy
-from bandelets.entropy import Coder, CorruptStream, code_flags, code_symbols
+from bandelets.entropy import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
 
 
 def _encode_flags(bits, ctxs, n_contexts):
@@ -43,6 +43,26 @@ def test_flags_with_wrong_contexts_do_not_decode(rng):
     # (A permutation of the context labels would decode fine: merge two contexts instead.)
     decoded, _ = _decode_flags(data, np.where(ctxs == 1, 0, ctxs), 4)
     assert not np.array_equal(decoded, bits)
+
+
+@pytest.mark.parametrize("shape", [(0, 5), (1, 1), (3, 7), (40, 40)])
+def test_flag_map_round_trips_and_its_neighbours_pay(shape, rng):
+    # Lines of ones, as a crease moves a line of blocks: the neighbour counts predict them.
+    bits = np.zeros(shape, np.int64)
+    for _ in range(shape[0] // 8):
+        r, c = rng.integers(0, shape[0]), rng.integers(0, max(shape[1] - 12, 1))
+        bits[r, c : c + 12] = 1
+        bits[r:, c] = 1
+    bits |= (rng.random(shape) < 0.02).astype(np.int64)
+    ctxs = np.zeros(shape, np.int64)
+    coder = Coder(3)
+    code_flag_map(coder, bits, ctxs, 1)
+    data = coder.finish()
+    decoder = Coder(3, data)
+    np.testing.assert_array_equal(code_flag_map(decoder, np.zeros(shape, np.int64), ctxs, 1), bits)
+    decoder.check()
+    if bits.size > 1000:  # the same flags without the neighbours cost more
+        assert len(data) < 0.8 * len(_encode_flags(bits.ravel(), ctxs.ravel(), 1))
 
 
 def test_several_calls_share_one_stream(rng):

@@ -41,6 +41,7 @@ __all__ = [
     "N_HINTS",
     "SQUARE_START",
     "code_flags",
+    "code_flag_map",
     "code_positive",
     "code_symbols",
     "code_coefficients",
@@ -315,6 +316,48 @@ def code_flags(coder: Coder, bits: np.ndarray, ctxs: np.ndarray) -> np.ndarray:
     coder.reserve(2 * bits.shape[0])
     _flags(
         coder.state, coder.buf, coder.probs, coder.counts, bits, np.asarray(ctxs, np.int64), coder.decoding
+    )
+    return bits
+
+
+@_kernel
+def _flag_map(st, buf, probs, counts, bits, ctxs, stride, decoding):
+    r = _registers(st)
+    for i in range(bits.shape[0]):
+        for j in range(bits.shape[1]):
+            near = (bits[i, j - 1] if j > 0 else 0) + (bits[i - 1, j] if i > 0 else 0)
+            bits[i, j], r = _code_bit(r, buf, probs, counts, ctxs[i, j] + stride * near, bits[i, j], decoding)
+    _keep(st, r)
+
+
+def code_flag_map(coder: Coder, bits: np.ndarray, ctxs: np.ndarray, stride: int) -> np.ndarray:
+    """Code a map of binary flags in raster order, each in its context of ``ctxs`` plus ``stride``
+    times the count (0 to 2) of its left and upper neighbours that are 1.
+
+    Parameters
+    ----------
+    coder : Coder
+    bits : ndarray of int64, shape (h, w)
+        The flags, 0 or 1 (ignored when decoding: pass zeros of the right shape).
+    ctxs : ndarray of int64, shape (h, w)
+        Context index of each flag before its neighbours are counted.
+    stride : int
+
+    Returns
+    -------
+    ndarray of int64, shape (h, w): the flags (decoded when decoding).
+    """
+    bits = np.array(bits, np.int64)
+    coder.reserve(2 * bits.size)
+    _flag_map(
+        coder.state,
+        coder.buf,
+        coder.probs,
+        coder.counts,
+        bits,
+        np.ascontiguousarray(ctxs, np.int64),
+        int(stride),
+        coder.decoding,
     )
     return bits
 
