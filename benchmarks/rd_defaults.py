@@ -1,0 +1,103 @@
+"""BD-PSNR of the defaults over AVIF, and over an earlier run, on every normal map of issue 15.
+
+    python benchmarks/rd_defaults.py --save out/rd-defaults-main.json        # on main
+    python benchmarks/rd_defaults.py --against out/rd-defaults-main.json     # on a branch
+
+(from the repository root; 2 to 5 minutes on the 2-core machine.) The maps: the generated
+crease (256 and 512) and bumps (256), the shared real maps of ``../shared/data/normal-maps``
+(read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit) and the normal maps of the fandisk
+and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
+``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats); a map whose
+file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
+``bandelets.encode(map, bpp=B, kind="normal-map", depth=D)`` and AVIF as
+:mod:`bandelets.anchors` drives it (4:4:4, identity matrix, speed 2), every point measured
+from its file (bpp ``8 x bytes / pixels``, PSNR of the decoded vectors renormalised). Prints the
+points and the BD-PSNR of the defaults over AVIF and, with ``--against``, over the defaults of
+the run saved there (``--save`` writes this run's curves as JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import bandelets
+from bandelets import anchors
+from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.samples import bump_normal_map, crease_normal_map
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rd_normal_maps import RATES, load  # noqa: E402
+
+MAPS = ("crease@256", "bumps@256", "crease@512", "acacia_door_bottom_n", "lava_flow_n", "fandisk", "bunny")
+
+
+def _maps(names, real: Path, meshes: Path):
+    """``name -> (unit vectors, depth)`` of the maps ``names`` whose source is present."""
+    for name in names:
+        if "@" in name:
+            sample, size = name.split("@")
+            yield name, ({"crease": crease_normal_map, "bumps": bump_normal_map}[sample](int(size)), 0)
+        elif name in ("fandisk", "bunny"):
+            if not (meshes / f"{name}.off").is_file():
+                print(f"skipping {name}: no {meshes / name}.off")
+                continue
+            from bandelets.surfaces.codec import load_mesh, make_geometry_image
+
+            normals = make_geometry_image(load_mesh(meshes / f"{name}.off"), 256).normals
+            yield name, (np.asarray(normals, np.float32).astype(np.float64), 0)
+        elif (real / f"{name}.png").is_file():
+            yield name, (load(real / f"{name}.png").astype(np.float64) / 255.0 * 2.0 - 1.0, 8)
+        else:
+            print(f"skipping {name}: no {real / name}.png")
+
+
+def _curve(vectors: np.ndarray, depth: int, codec: str) -> list[tuple[float, float]]:
+    points = []
+    for rate in RATES:
+        if codec == "bandelets":
+            data = bandelets.encode(vectors, bpp=rate, kind="normal-map", depth=depth)
+            decoded = bandelets.decode(data)
+        else:
+            data = anchors.encode(vectors, rate, codec, "normal-map", depth)
+            decoded = anchors.decode(data, codec, vectors, "normal-map", depth)
+        points.append(
+            (bits_per_pixel(len(data), vectors.shape), psnr(unit_vectors(vectors), decoded, "normal-map"))
+        )
+    return points
+
+
+def _bd(ours, theirs) -> float:
+    return bd_psnr(*zip(*ours, strict=True), *zip(*theirs, strict=True))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--maps", nargs="+", default=list(MAPS), help=f"maps (default: {' '.join(MAPS)})")
+    parser.add_argument("--real", type=Path, default=Path("../shared/data/normal-maps"))
+    parser.add_argument("--meshes", type=Path, default=Path("../shared/data/meshes"))
+    parser.add_argument("--save", type=Path, help="write this run's curves here (JSON)")
+    parser.add_argument("--against", type=Path, help="curves of an earlier run (--save) to compare with")
+    args = parser.parse_args()
+    earlier = json.loads(args.against.read_text()) if args.against else {}
+    curves = {}
+    for name, (vectors, depth) in _maps(args.maps, args.real, args.meshes):
+        ours, avif = _curve(vectors, depth, "bandelets"), _curve(vectors, depth, "avif")
+        curves[name] = {"bandelets": ours, "avif": avif}
+        points = " ".join(f"{p:.2f} ({b:.3f})" for b, p in ours)
+        line = f"{name}: {points}; over AVIF {_bd(ours, avif):+.2f} dB"
+        if name in earlier:
+            line += f", over the earlier run {_bd(ours, earlier[name]['bandelets']):+.3f} dB"
+            line += f" (which was {_bd(earlier[name]['bandelets'], avif):+.2f} over AVIF)"
+        print(line, flush=True)
+    if args.save:
+        args.save.parent.mkdir(parents=True, exist_ok=True)
+        args.save.write_text(json.dumps(curves))
+
+
+if __name__ == "__main__":
+    main()
