@@ -165,16 +165,17 @@ def test_three_channel_normal_maps_are_restored_on_the_sphere(crease_map):
 
 @pytest.mark.parametrize("kind", ["image", "normal-map"])
 def test_the_encoder_never_picks_a_worse_restoration(rng, kind):
-    """On noise, restoring may not help: the count chosen never decodes worse than none."""
+    """On noise, restoring may not help: the count chosen never decodes worse than none (both
+    without the loop filter, which is fitted to the restored image and chosen after the count)."""
     x = rng.normal(size=(48, 40, 3))
     if kind == "normal-map":
         x = metrics.unit_vectors(x)
     reference = metrics.unit_vectors(x) if kind == "normal-map" else x
     for bpp in (0.5, 2.0):
-        data = bandelets.encode(x, bpp=bpp, kind=kind)
-        header, streams = unpack(data)
+        header, streams = unpack(bandelets.encode(x, bpp=bpp, kind=kind))
+        header = replace(header, loop_filter=None)
         plain = pack(replace(header, restoration=0), streams)
-        restored = metrics.psnr(reference, bandelets.decode(data), kind)
+        restored = metrics.psnr(reference, bandelets.decode(pack(header, streams)), kind)
         assert restored >= metrics.psnr(reference, bandelets.decode(plain), kind)
 
 
