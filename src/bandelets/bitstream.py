@@ -18,11 +18,11 @@ Layout (little endian)::
     20      8     threshold T (float64, MIN_THRESHOLD to MAX_THRESHOLD)
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
-                  if the file has a loop filter (format version 12)
+                  if the file has a loop filter (format version 11)
     41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
     42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
     42/56   ...   the three streams
-    ...     ...   the loop filter (format version 12; when byte 40 says so)
+    ...     ...   the loop filter (format version 11; when byte 40 says so)
     end-4   4     CRC32 of everything before it
 
 Until version 10, a normal map whose every vector has ``z >= 0`` (tangent-space and height-field
@@ -52,11 +52,12 @@ iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION
 Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
 equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``,
 and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_WAY` of +z.
-Version 12 added the loop filter (:mod:`bandelets.loopfilter`), after the streams. Version 13
+Version 11 also added the loop filter (:mod:`bandelets.loopfilter`), after the streams,
 reconstructs a bin at its middle (:data:`bandelets.quantize.RECONSTRUCTION`, 0.44 of the bin
-before). This build reads version 13 only.
+before) and codes the lifting blocks' moved flags in the context of their neighbours
+(:func:`bandelets.entropy.code_flag_map`). This build reads version 11 only.
 
-Loop filter (format version 12), between the streams and the CRC when byte 40 says so::
+Loop filter (format version 11), between the streams and the CRC when byte 40 says so::
 
     0       1     radius of the diamond (1 to MAX_FILTER_RADIUS) + 4 if cross-channel taps
                   (2 or 3 channels only)
@@ -152,7 +153,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 13
+FORMAT_VERSION = 11
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 

@@ -215,7 +215,7 @@ def code_fields(coder: entropy.Coder, fields: list[np.ndarray] | None, shape, li
     than the plain one) has the context of its pass, of the block coded before at its place: in
     the rows pass of the same level for a columns pass, in the rows pass of the next coarser level
     for a rows pass (none for the coarsest), and of how many of its left and upper neighbours
-    moved (format version 13: a crease moves a line of blocks; 10 to 16 % fewer bits for the
+    moved (format version 11: a crease moves a line of blocks; 10 to 16 % fewer bits for the
     directions of the 256 x 256 crease and fandisk normal maps at 0.5 and 1 bpp). The other codes
     are symbols of an adaptive model per pass. Contexts from
     ``base`` on (:data:`N_CONTEXTS` of them).

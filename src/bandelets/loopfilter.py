@@ -3,7 +3,7 @@
 Not a step of the paper; the idea of VVC's adaptive loop filter and of AV1's Wiener loop
 restoration. The encoder has both the original channels and the decoded (restored) ones, so it
 can solve, by least squares, for the small linear filter that maps the decoded channels closest
-to the original ones, and write that filter into the file (format version 12, the section of
+to the original ones, and write that filter into the file (format version 11, the section of
 :class:`bandelets.bitstream.LoopFilter`). What is left after the restoration is mostly a smooth
 loss of contrast of fine detail (a low-pass look) and a little ringing: a short symmetric filter
 sharpens the one and damps the other, on every kind of content, without knowing which.

@@ -41,7 +41,7 @@ MAX_INDEX = 2**30
 #: 0.42 to 0.47 of the bin on the generated normal maps, but the restoration starts from these
 #: values and moves them inside their bins: with it, the middle gained +0.12 dB BD-PSNR over 0.44
 #: on the 256 x 256 crease map, +0.06 on the bumps, +0.02 on the acacia door and the bunny
-#: normals, -0.01 on the lava flow (format version 13; 0.47: half of that, 0.56: mixed).
+#: normals, -0.01 on the lava flow (format version 11; 0.47: half of that, 0.56: mixed).
 # Compiled into the kernels of bandeletize.py and lagrangian.py as a constant: numba's cache does
 # not see a change here, so delete src/bandelets/__pycache__/*.nb[ic] after changing it
 # (tests/test_reference.py fails on a stale cache).
