@@ -39,3 +39,30 @@ def test_quiet_commands_say_nothing():
     loud = _run("from bandelets import cli\ncli._working()\nnjit(lambda x: x + 1)(1)\n")
     assert (quiet.returncode, quiet.stderr) == (0, "")
     assert (loud.returncode, loud.stderr) == (0, f"{compilation.MESSAGE}\n")
+
+
+def test_kernels_cached_from_other_sources_are_deleted(tmp_path):
+    from bandelets.kernelcache import STAMP, purge_stale_kernels
+
+    package = tmp_path / "pkg"
+    (package / "__pycache__").mkdir(parents=True)
+    (package / "kernels.py").write_text("A = 1\n")
+    cached = [package / "__pycache__" / f"kernels.f-1.py311.{suffix}" for suffix in ("nbi", "1.nbc")]
+    for path in cached:
+        path.write_bytes(b"old")
+    assert purge_stale_kernels(package)  # no stamp yet: made by an earlier install
+    assert not any(path.exists() for path in cached)
+    assert (package / "__pycache__" / STAMP).exists()
+    for path in cached:  # compiled again from these sources
+        path.write_bytes(b"new")
+    assert not purge_stale_kernels(package)
+    assert all(path.exists() for path in cached)
+    (package / "kernels.py").write_text("A = 2\n")  # a new version installed over it
+    assert purge_stale_kernels(package)
+    assert not any(path.exists() for path in cached)
+    # A git checkout is left alone.
+    (tmp_path / ".git").mkdir()
+    (package / "kernels.py").write_text("A = 3\n")
+    cached[0].write_bytes(b"new")
+    assert not purge_stale_kernels(package)
+    assert cached[0].exists()

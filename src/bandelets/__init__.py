@@ -14,7 +14,12 @@ quantization, context-modelled arithmetic coding and a .bdl file.
 from importlib import import_module
 from typing import TYPE_CHECKING
 
+from . import kernelcache as _kernelcache
+
 __version__ = "0.1.0"
+
+# Before any kernel is loaded: those cached by an earlier install may be stale (kernelcache).
+_kernelcache.purge_stale_kernels()
 
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
 _HOME = {
