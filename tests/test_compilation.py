@@ -44,8 +44,9 @@ def test_quiet_commands_say_nothing():
 def test_kernels_cached_from_other_sources_are_deleted(tmp_path):
     from bandelets.kernelcache import STAMP, purge_stale_kernels
 
-    package = tmp_path / "pkg"
+    package = tmp_path / "site-packages" / "pkg"
     (package / "__pycache__").mkdir(parents=True)
+    (tmp_path / ".git").mkdir()  # pyenv's Pythons live in a git repository: no matter
     (package / "kernels.py").write_text("A = 1\n")
     cached = [package / "__pycache__" / f"kernels.f-1.py311.{suffix}" for suffix in ("nbi", "1.nbc")]
     for path in cached:
@@ -60,8 +61,8 @@ def test_kernels_cached_from_other_sources_are_deleted(tmp_path):
     (package / "kernels.py").write_text("A = 2\n")  # a new version installed over it
     assert purge_stale_kernels(package)
     assert not any(path.exists() for path in cached)
-    # A git checkout is left alone.
-    (tmp_path / ".git").mkdir()
+    # A source checkout (src layout, beside the pyproject.toml) is left alone.
+    (tmp_path / "pyproject.toml").write_text("")
     (package / "kernels.py").write_text("A = 3\n")
     cached[0].write_bytes(b"new")
     assert not purge_stale_kernels(package)

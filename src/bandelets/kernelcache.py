@@ -9,8 +9,10 @@ So, at import, :func:`purge_stale_kernels` compares a digest of the package's so
 one it stamped in the cache, and deletes the cached kernels when they differ. Numba offers no
 such check; hence this module. It does not import numba, so that the command line starts fast.
 
-A git checkout (an editable install) is left alone: there every edit would recompile all the
-kernels, and developers follow the rule written beside such constants.
+A source checkout (an editable install: ``src/bandelets`` beside the ``pyproject.toml``) is left
+alone: there every edit would recompile all the kernels, and developers follow the rule written
+beside such constants. (Not "inside a git repository": pyenv's Pythons, site-packages included,
+live in one.)
 """
 
 from __future__ import annotations
@@ -30,10 +32,10 @@ def purge_stale_kernels(package: Path = Path(__file__).parent) -> bool:
     """Delete numba's cached kernels (``__pycache__/*.nbi``, ``*.nbc``) under ``package`` if they
     were made from other sources than the package's current ones; returns whether it did.
 
-    Nothing is done in a git checkout, and a folder that cannot be written is left as it is
+    Nothing is done in a source checkout, and a folder that cannot be written is left as it is
     (numba then caches elsewhere, or not at all).
     """
-    if any((folder / ".git").exists() for folder in package.parents):
+    if (package.parent.parent / "pyproject.toml").exists():
         return False
     digest = hashlib.sha256()
     for source in sorted(package.rglob("*.py")):
