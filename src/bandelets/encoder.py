@@ -7,6 +7,7 @@ Rate control (a target rate or PSNR) lives in :mod:`bandelets.ratecontrol`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import partial
 from itertools import islice
 from typing import Literal
 
@@ -429,9 +430,11 @@ def encode_with_stats(
                 normalmaps.equidistant(reference) if equidistant else reference.reshape(height, width, -1)
             )
             targets = np.ascontiguousarray(np.moveaxis(planes[..., :channels], -1, 0), np.float32)
-            top = metrics.peak(reference, kind)
-            samples = height * width * (3 if kind == "normal-map" else channels)
-            to_error = lambda p: 0.0 if p == float("inf") else samples * top**2 * 10.0 ** (-p / 10.0)  # noqa: E731
+            to_error = partial(
+                _squared_error,
+                peak=metrics.peak(reference, kind),
+                samples=height * width * (3 if kind == "normal-map" else channels),
+            )
         # Rate control holds the source only where it measures a decoded image against it: a
         # quality target, or a measured encode without the restoration.
         if not (psnr is not None or max_angle is not None or (measured and not options.restore)):
@@ -557,6 +560,13 @@ _RESTORATION_PATIENCE = 10
 #: the best: on the 512 x 512 crease map at 1 bpp 39 iterations instead of 45 keep 97 % of 5.9 dB,
 #: and decode 13 % faster).
 RESTORATION_SHARE = 0.97
+
+
+def _squared_error(psnr: float, peak: float, samples: int) -> float:
+    """The summed squared error of ``samples`` values that a PSNR of ``psnr`` dB stands for."""
+    return 0.0 if psnr == float("inf") else samples * peak**2 * 10.0 ** (-psnr / 10.0)
+
+
 #: Copies of the restored channels the encoder keeps while it searches, so that the channels of
 #: the count chosen need not be made again (for the loop filter): at most _KEPT, of at most
 #: _KEPT_BYTES together (none of a 2048 x 2048 map: made again, the encoder's peak memory stays).
