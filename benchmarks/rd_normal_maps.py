@@ -5,8 +5,9 @@
 
 (from the repository root; about 10 minutes on the 2-core machine.) For every real map of
 ``--maps`` (skipped with a message when the folder is absent), or with ``--samples`` every
-generated map named (:mod:`bandelets.samples`, ``--size`` pixels a side, float, the anchors
-given 16-bit samples, 12-bit for AVIF), and every rate of 0.25 to 2 bpp,
+generated map named (:mod:`bandelets.samples`, ``--size`` pixels a side: ``crease`` and ``bumps``
+float, the anchors given 16-bit samples, 12-bit for AVIF; ``bevel`` 8-bit samples, as a PNG, given
+to every codec as the real maps are), and every rate of 0.25 to 2 bpp,
 one file per codec, written under ``OUT/MAP/`` and read back; every bpp is ``8 x bytes /
 pixels`` of that file and every PSNR that of the vectors it decodes to, renormalised, against
 the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). The codecs:
@@ -38,9 +39,9 @@ import numpy as np
 
 import bandelets
 from bandelets import anchors
-from bandelets.files import write_atomic
+from bandelets.files import from_samples, write_atomic
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
-from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
 
 HERE = Path(__file__).resolve().parent
 RATES = (0.25, 0.35, 0.5, 0.71, 1.0, 1.41, 2.0)
@@ -53,7 +54,7 @@ OURS = {
     "wavelet": {"transform": "wavelet", "lifting": False},
 }
 CODECS = (*OURS, "jpeg2000", "avif", "jpegxl")
-SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map}
+SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map, "bevel": bevel_normal_map}
 
 
 def load(path: Path) -> np.ndarray:
@@ -65,6 +66,13 @@ def load(path: Path) -> np.ndarray:
         pixels = pixels.copy()
         pixels[..., 2] = np.rint((z + 1.0) / 2.0 * 255.0).astype(np.uint8)
     return pixels
+
+
+def sample(name: str, size: int) -> tuple[np.ndarray, int]:
+    """The generated map ``name`` of ``size`` pixels a side and its depth (8 for 8-bit samples, as
+    the real maps are given, else 0: float)."""
+    array = SAMPLES[name](size)
+    return (from_samples(array, "normal-map", 8), 8) if array.dtype == np.uint8 else (array, 0)
 
 
 def point(vectors: np.ndarray, depth: int, codec: str, rate: float, folder: Path) -> dict:
@@ -111,7 +119,7 @@ def main() -> None:
         parser.error(f"--codecs: any of {', '.join(CODECS)}")
     reference = codecs[0]  # the BD-PSNRs are those of the first codec over the others
     if args.samples:
-        maps = {f"{name}@{args.size}": (SAMPLES[name](args.size), 0) for name in args.samples}
+        maps = {f"{name}@{args.size}": sample(name, args.size) for name in args.samples}
         results = HERE / f"rd-normal-maps-samples-{args.size}.md"
     else:
         paths = sorted(args.maps.glob("*.png")) if args.maps.is_dir() else []

@@ -77,6 +77,17 @@ def test_png_inputs_keep_their_kind_and_depth(tmp_path):
     assert (sample.name, sample.kind, sample.array.shape) == ("bumps@24", "normal-map", (24, 24, 3))
 
 
+def test_the_bevel_sample_is_measured_as_its_8_bit_png():
+    sample = rd.load("sample:bevel@32")
+    assert (sample.name, sample.kind, sample.depth, sample.array.dtype) == (
+        "bevel@32",
+        "normal-map",
+        8,
+        np.float64,
+    )
+    assert np.allclose(sample.array[0, 0], (1 / 255, 1 / 255, 1.0))  # (128, 128, 255)
+
+
 def test_unusable_files_stop_the_run(tmp_path):
     np.save(tmp_path / "nan.npy", np.full((16, 16), np.nan))
     with pytest.raises(ValueError, match="nan.npy: input contains NaN"):

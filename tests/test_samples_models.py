@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.samples import blurred_edge, bump_normal_map, crease_height, crease_normal_map, normal_map
+from bandelets.files import from_samples
+from bandelets.samples import (
+    bevel_normal_map,
+    blurred_edge,
+    bump_normal_map,
+    crease_height,
+    crease_normal_map,
+    normal_map,
+)
 
 
 @pytest.mark.parametrize("profile", ["step", "tangent"])
@@ -48,3 +56,26 @@ def test_normal_map_of_a_plane_is_its_constant_normal():
     assert np.allclose(n, expected, atol=1e-6)
     assert crease_normal_map(16).shape == (16, 16, 3)
     assert crease_height(np.zeros(1), np.zeros(1)).shape == (1,)
+
+
+def test_bevel_map_is_8_bit_samples_on_an_exactly_flat_background():
+    px = bevel_normal_map(128)
+    assert px.shape == (128, 128, 3) and px.dtype == np.uint8
+    assert np.array_equal(px, bevel_normal_map(128))  # deterministic
+    flat = np.all(px == (128, 128, 255), axis=-1)
+    assert 0.5 < flat.mean() < 0.75  # the background; the shapes take the rest
+    assert flat[0, 0] and flat[-1, -1]
+    n = from_samples(px, "normal-map", 8)
+    assert np.all(np.abs(np.linalg.norm(n, axis=-1) - 1.0) < 0.01)  # unit vectors, as rounded
+    tilt = np.degrees(np.arccos(np.clip(n[..., 2] / np.linalg.norm(n, axis=-1), -1, 1)))
+    assert 40 < np.percentile(tilt[~flat], 99) < 70  # the 45-degree chamfers and rounded bevels
+    # The tops of the shapes: flat without the texture, bumpy (a little) with it.
+    faces = ~flat & np.all(bevel_normal_map(128, texture=0.0) == (128, 128, 255), axis=-1)
+    assert faces.sum() > 0.15 * (~flat).sum()
+    assert 0.005 < np.std(n[faces, 0]) < 0.1
+    assert not np.array_equal(px, bevel_normal_map(128, seed=1))
+
+
+def test_bevel_map_size_is_checked():
+    with pytest.raises(ValueError, match="at least 16"):
+        bevel_normal_map(8)

@@ -161,7 +161,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "inputs",
         nargs="*",
         metavar="INPUT",
-        help="PNG, .npy or sample:NAME[@SIZE] (crease, bumps, edge-step, edge-tangent), or closed "
+        help="PNG, .npy or sample:NAME[@SIZE] (crease, bumps, bevel, edge-step, edge-tangent), or closed "
         "genus-0 meshes (OBJ, PLY, OFF, STL); with --decay, default sample:edge-step sample:edge-tangent",
     )
     p.add_argument("--kind", choices=KINDS, default="image", help="kind of the file inputs (default image)")

@@ -31,7 +31,7 @@ from tqdm import tqdm
 from . import anchors, samples
 from .decoder import decode
 from .encoder import encode
-from .files import read_array, write_atomic
+from .files import from_samples, read_array, write_atomic
 from .metrics import angular_error, bd_psnr, bits_per_pixel, psnr
 from .options import check_image
 from .plots import rate_key, rd_figure
@@ -65,6 +65,7 @@ MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 SAMPLES = {
     "crease": (samples.crease_normal_map, "normal-map"),
     "bumps": (samples.bump_normal_map, "normal-map"),
+    "bevel": (samples.bevel_normal_map, "normal-map"),
     "edge-step": (lambda size: samples.blurred_edge(size, "step"), "image"),
     "edge-tangent": (lambda size: samples.blurred_edge(size, "tangent"), "image"),
 }
@@ -155,7 +156,10 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
         raise ValueError(f"{spec}: the size must be an integer from 16 to 4096")
     side = int(size or SAMPLE_SIZE)
     make, sample_kind = SAMPLES[name]
-    return Source(f"{name}@{side}", make(side), sample_kind)
+    array = make(side)
+    if array.dtype == np.uint8:  # 8-bit samples (the bevel map), measured as the PNG they stand for
+        return Source(f"{name}@{side}", from_samples(array, sample_kind, 8), sample_kind, 8)
+    return Source(f"{name}@{side}", array, sample_kind)
 
 
 def _encode(source: Source, codec: str, rate: float) -> bytes:
