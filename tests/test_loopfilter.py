@@ -46,17 +46,34 @@ def _header(channels: int = 2, loop_filter: LoopFilter | None = None) -> Header:
 
 
 @pytest.mark.parametrize(
-    ("radius", "cross", "channels"), [(1, False, 1), (2, False, 2), (3, True, 2), (3, True, 3)]
+    ("radius", "cross", "square", "channels"),
+    [
+        (1, 0, False, 1),
+        (2, 0, True, 2),
+        (3, 1, False, 2),
+        (3, 1, False, 3),
+        (3, 2, False, 2),
+        (3, 2, True, 3),
+    ],
 )
-def test_a_filter_is_read_back_bit_exactly(radius, cross, channels):
+def test_a_filter_is_read_back_bit_exactly(radius, cross, square, channels):
     rng = np.random.default_rng(radius + channels)
-    count = channels * filter_taps(radius, cross, channels)
+    count = channels * filter_taps(radius, cross, channels, square)
     for largest in (1, 100, 2**MAX_FILTER_WIDTH // 2 - 1):
         coefficients = tuple(int(v) for v in rng.integers(-largest, largest + 1, count))
-        f = LoopFilter(radius=radius, cross=cross, clip=largest % 7, shift=11, coefficients=coefficients)
+        f = LoopFilter(
+            radius=radius, cross=cross, square=square, clip=largest % 7, shift=11, coefficients=coefficients
+        )
         header = _header(channels, f)
         data = pack(header, (b"", b"", b"ab"))
         assert unpack(data) == (header, (b"", b"", b"ab"))
+
+
+def test_filter_shapes_count_their_taps():
+    # A diamond of radius 3 (12 pairs of taps), the 3 x 3 / 5 x 5 square of each other channel (4 / 12).
+    assert [filter_taps(3, cross, 3) for cross in (0, 1, 2)] == [12, 12 + 2 * 4, 12 + 2 * 12]
+    assert filter_taps(2, 2, 1) == 6
+    assert [filter_taps(radius, 0, 1, square=True) for radius in (1, 2, 3)] == [4, 12, 24]
 
 
 def test_the_encoders_filter_is_what_the_decoder_applies():
@@ -92,7 +109,8 @@ def plain_file():
     [
         (b"", "stream lengths"),  # the flag without a section
         (b"\x03", "section of 1 bytes"),
-        (bytes([3 + 8, 8, 8, 0]) + bytes(100), "shape"),  # radius 3 with a flag that does not exist
+        (bytes([3 + 12, 8, 8, 0]) + bytes(100), "shape"),  # a cross-channel square of radius 3
+        (bytes([3 + 32, 8, 8, 0]) + bytes(100), "shape"),  # a flag that does not exist
         (bytes([0, 8, 8, 0]) + bytes(100), "shape"),  # radius 0
         (bytes([3, MAX_FILTER_SHIFT + 1, 8, 0]) + bytes(24), "shift"),
         (bytes([3, 8, 1, 0]) + bytes(6), "bits"),
@@ -101,7 +119,7 @@ def plain_file():
         (bytes([3, 8, 8, 0]) + bytes(25), "24 coefficients of 8 bits in 29 bytes"),
         (bytes([3, 8, 8, 0]) + bytes(2**20), "stream lengths"),  # a huge section
     ],
-    ids=["none", "short", "flag", "radius", "shift", "narrow", "wide", "clip", "length", "huge"],
+    ids=["none", "short", "cross", "flag", "radius", "shift", "narrow", "wide", "clip", "length", "huge"],
 )
 def test_hostile_filter_sections_are_format_errors(plain_file, section, words):
     assert unpack(plain_file)[0].loop_filter is None
@@ -116,7 +134,7 @@ def test_cross_channel_taps_need_two_or_three_channels():
         bandelets.decode(_section(data, bytes([3 + 4, 8, 8, 0]) + bytes(16)))
     with pytest.raises(ValueError, match="not a loop filter"):
         pack(
-            _header(1, LoopFilter(radius=1, cross=True, clip=0, shift=8, coefficients=(0, 0))),
+            _header(1, LoopFilter(radius=1, cross=1, clip=0, shift=8, coefficients=(0, 0))),
             (b"", b"", b""),
         )
 

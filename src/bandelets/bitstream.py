@@ -55,16 +55,22 @@ and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_
 Version 11 also added the loop filter (:mod:`bandelets.loopfilter`), after the streams,
 reconstructs a bin at its middle (:data:`bandelets.quantize.RECONSTRUCTION`, 0.44 of the bin
 before) and codes the lifting blocks' moved flags in the context of their neighbours
-(:func:`bandelets.entropy.code_flag_map`). This build reads version 11 only.
+(:func:`bandelets.entropy.code_flag_map`). Version 12 lets the loop filter take its taps on the
+other channels over the 5 x 5 square, not only the 3 x 3, and its own taps over a square, not
+only a diamond. This build reads version 12 only.
 
-Loop filter (format version 11), between the streams and the CRC when byte 40 says so::
+Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
+40 says so::
 
-    0       1     radius of the diamond (1 to MAX_FILTER_RADIUS) + 4 if cross-channel taps
-                  (2 or 3 channels only)
+    0       1     radius of the channel's own taps (1 to MAX_FILTER_RADIUS) + 4 times the
+                  radius of the square of cross-channel taps (0 none, 1: 3 x 3, 2: 5 x 5; 2 or
+                  3 channels only) + 16 if the own taps fill the square of their radius, not
+                  the diamond (the 5 x 5 cross-channel square and the own square since 12)
     1       1     shift: a coefficient is its integer over 2**shift (0 to MAX_FILTER_SHIFT)
     2       1     width: bits of every integer (2 to MAX_FILTER_WIDTH), two's complement
     3       1     clipping of the differences: 0 none, k (1 to MAX_FILTER_CLIP) to +-T 2**(3 - k)
-    4       ...   the integers of every channel's taps in turn (:func:`filter_offsets`),
+    4       ...   the integers of every channel's taps in turn (:func:`filter_offsets`, then
+                  :func:`filter_cross_offsets` of each other channel),
                   most significant bit first, the last byte padded with zeros
 
 The layout of a normal map's source, which the decoder returns (since version 11 it also says
@@ -130,7 +136,8 @@ __all__ = [
     "MAX_FILTER_WIDTH",
     "MAX_FILTER_CLIP",
     "LoopFilter",
-    "FILTER_CROSS_OFFSETS",
+    "MAX_FILTER_CROSS",
+    "filter_cross_offsets",
     "filter_offsets",
     "filter_taps",
     "filter_bytes",
@@ -153,7 +160,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 11
+FORMAT_VERSION = 12
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -200,14 +207,8 @@ MAX_LEVELS = 6
 MAX_LIFTING = 3
 #: Most restoration iterations a file may ask for (one byte; :mod:`bandelets.restoration`).
 MAX_RESTORATION = 100
-#: Bounds of the loop filter (:class:`LoopFilter`): at most 12 + 8 taps per channel.
-MAX_FILTER_RADIUS, MAX_FILTER_SHIFT, MAX_FILTER_WIDTH, MAX_FILTER_CLIP = 3, 24, 24, 16
-#: Offsets of the loop filter's taps on every other channel, ``(dy, dx) > (0, 0)`` of the 3 x 3
-#: square (:mod:`bandelets.loopfilter`).
-FILTER_CROSS_OFFSETS = ((0, 1), (1, -1), (1, 0), (1, 1))
-#: The largest loop filter section: 4 channels of a diamond of radius 3 (12 taps), or 3 channels
-#: with cross-channel taps (20), at MAX_FILTER_WIDTH bits.
-_MOST_FILTER_BYTES = 4 + (3 * 20 * MAX_FILTER_WIDTH + 7) // 8
+#: Bounds of the loop filter (:class:`LoopFilter`): at most 24 + 2 x 12 taps per channel.
+MAX_FILTER_RADIUS, MAX_FILTER_CROSS, MAX_FILTER_SHIFT, MAX_FILTER_WIDTH, MAX_FILTER_CLIP = 3, 2, 24, 24, 16
 #: Weight of the normal component of the details of a normal map of three channels, coded in
 #: local frames (implied by the kind and the channel count: no header field; chosen in
 #: :mod:`bandelets.frames`).
@@ -250,27 +251,39 @@ class LoopFilter:
     ``c``."""
 
     radius: int
-    cross: bool
+    #: Radius of the square of taps on every other channel (0: none, 1: 3 x 3, 2: 5 x 5).
+    cross: int
     #: Clipping of the differences: 0 none, ``k`` >= 1 to ``+-T 2**(3 - k)``.
     clip: int
     shift: int
     coefficients: tuple[int, ...]
+    #: The channel's own taps fill the square of ``radius``, not the diamond.
+    square: bool = False
 
 
-def filter_offsets(radius: int) -> tuple[tuple[int, int], ...]:
-    """The offsets ``(dy, dx) > (0, 0)`` of the diamond ``|dy| + |dx| <= radius``, in row order:
-    one per pair of point-symmetric taps of a loop filter (2, 6, 12 for radius 1, 2, 3)."""
+def filter_offsets(radius: int, square: bool = False) -> tuple[tuple[int, int], ...]:
+    """The offsets ``(dy, dx) > (0, 0)`` of the diamond ``|dy| + |dx| <= radius`` (2, 6, 12 for
+    radius 1, 2, 3) or of the square ``|dy|, |dx| <= radius`` (4, 12, 24), in row order: one per
+    pair of point-symmetric taps of a loop filter."""
     return tuple(
         (dy, dx)
         for dy in range(radius + 1)
         for dx in range(-radius, radius + 1)
-        if abs(dy) + abs(dx) <= radius and (dy, dx) > (0, 0)
+        if (square or abs(dy) + abs(dx) <= radius) and (dy, dx) > (0, 0)
     )
 
 
-def filter_taps(radius: int, cross: bool, channels: int) -> int:
-    """Taps of one channel's loop filter: the diamond's, then the other channels' (``cross``)."""
-    return len(filter_offsets(radius)) + (len(FILTER_CROSS_OFFSETS) * (channels - 1) if cross else 0)
+def filter_cross_offsets(cross: int) -> tuple[tuple[int, int], ...]:
+    """The offsets ``(dy, dx) > (0, 0)`` of the square ``|dy|, |dx| <= cross``, in row order: one
+    per pair of point-symmetric taps of a loop filter on every other channel (0, 4, 12 for
+    ``cross`` 0, 1, 2)."""
+    return filter_offsets(cross, square=True)
+
+
+def filter_taps(radius: int, cross: int, channels: int, square: bool = False) -> int:
+    """Taps of one channel's loop filter: its own (:func:`filter_offsets`), then the other
+    channels' (``cross``)."""
+    return len(filter_offsets(radius, square)) + len(filter_cross_offsets(cross)) * (channels - 1)
 
 
 def filter_width(largest: int) -> int:
@@ -283,12 +296,20 @@ def filter_bytes(channels: int, taps: int, width: int) -> int:
     return 4 + (channels * taps * width + 7) // 8
 
 
+def _most_filter_bytes(channels: int) -> int:
+    """The largest loop filter section of ``channels`` channels: the 7 x 7 square of own taps, with
+    cross-channel taps over the 5 x 5 square for 2 or 3 channels, at MAX_FILTER_WIDTH bits."""
+    cross = MAX_FILTER_CROSS if 2 <= channels <= 3 else 0
+    return filter_bytes(channels, filter_taps(MAX_FILTER_RADIUS, cross, channels, True), MAX_FILTER_WIDTH)
+
+
 def _pack_filter(loop_filter: LoopFilter, channels: int) -> bytes:
     """The loop filter section (see the module's docstring)."""
     f = loop_filter
-    taps = filter_taps(f.radius, f.cross, channels)
+    taps = filter_taps(f.radius, f.cross, channels, f.square)
     if not (
         1 <= f.radius <= MAX_FILTER_RADIUS
+        and 0 <= f.cross <= MAX_FILTER_CROSS
         and (not f.cross or 2 <= channels <= 3)
         and 0 <= f.shift <= MAX_FILTER_SHIFT
         and 0 <= f.clip <= MAX_FILTER_CLIP
@@ -300,9 +321,9 @@ def _pack_filter(loop_filter: LoopFilter, channels: int) -> bytes:
         raise ValueError(f"loop filter coefficients of more than {MAX_FILTER_WIDTH} bits: {f}")
     bits = "".join(format(v & ((1 << width) - 1), f"0{width}b") for v in f.coefficients)
     bits += "0" * (-len(bits) % 8)
-    return bytes([f.radius + 4 * f.cross, f.shift, width, f.clip]) + int(bits or "0", 2).to_bytes(
-        len(bits) // 8, "big"
-    )
+    return bytes([f.radius + 4 * f.cross + 16 * f.square, f.shift, width, f.clip]) + int(
+        bits or "0", 2
+    ).to_bytes(len(bits) // 8, "big")
 
 
 def _unpack_filter(section: bytes, channels: int) -> LoopFilter:
@@ -310,9 +331,12 @@ def _unpack_filter(section: bytes, channels: int) -> LoopFilter:
     if len(section) < 4:
         raise FormatError(f"corrupt .bdl file: a loop filter section of {len(section)} bytes")
     shape, shift, width, clip = section[:4]
-    radius, cross = shape % 4, shape // 4
+    radius, cross, square = shape % 4, shape // 4 % 4, shape // 16
     checks = [
-        (1 <= radius <= MAX_FILTER_RADIUS and cross in (0, 1), f"bad loop filter shape {shape}"),
+        (
+            1 <= radius <= MAX_FILTER_RADIUS and cross <= MAX_FILTER_CROSS and square <= 1,
+            f"bad loop filter shape {shape}",
+        ),
         (not cross or 2 <= channels <= 3, f"cross-channel loop filter taps with {channels} channels"),
         (shift <= MAX_FILTER_SHIFT, f"loop filter shift {shift} (at most {MAX_FILTER_SHIFT})"),
         (2 <= width <= MAX_FILTER_WIDTH, f"loop filter coefficients of {width} bits"),
@@ -321,7 +345,7 @@ def _unpack_filter(section: bytes, channels: int) -> LoopFilter:
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
-    count = channels * filter_taps(radius, bool(cross), channels)
+    count = channels * filter_taps(radius, cross, channels, bool(square))
     if len(section) != filter_bytes(channels, count // channels, width):
         raise FormatError(
             f"corrupt .bdl file: a loop filter of {count} coefficients of {width} bits "
@@ -333,7 +357,12 @@ def _unpack_filter(section: bytes, channels: int) -> LoopFilter:
         v = (value >> (total - (k + 1) * width)) & ((1 << width) - 1)
         coefficients.append(v - (1 << width) if v >> (width - 1) else v)
     return LoopFilter(
-        radius=radius, cross=bool(cross), clip=clip, shift=shift, coefficients=tuple(coefficients)
+        radius=radius,
+        cross=cross,
+        clip=clip,
+        shift=shift,
+        coefficients=tuple(coefficients),
+        square=bool(square),
     )
 
 
@@ -508,7 +537,7 @@ def unpack(
         (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (
-            0 < len(body) - start - sum(lengths) <= _MOST_FILTER_BYTES
+            0 < len(body) - start - sum(lengths) <= _most_filter_bytes(channels)
             if filtered
             else sum(lengths) == len(body) - start,
             "stream lengths do not match the file size",

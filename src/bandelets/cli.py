@@ -462,6 +462,7 @@ def _info(args) -> None:
         else {
             "radius": header.loop_filter.radius,
             "cross_channel": header.loop_filter.cross,
+            "square": header.loop_filter.square,
             "clip": header.loop_filter.clip,
         },
         "bytes": len(data),

@@ -11,23 +11,27 @@ sharpens the one and damps the other, on every kind of content, without knowing 
 Each coded channel gets its own filter, of the form ``x + sum_k w_k (clip(x[p + k] - x[p]) +
 clip(x[p - k] - x[p]))`` over the offsets ``k`` of a diamond of
 :attr:`~bandelets.bitstream.LoopFilter.radius` (point symmetric, so the filter has zero phase: 2,
-6 or 12 taps), ``clip`` bounding each difference to ``+-c`` (as VVC's non-linear ALF does: a
-difference across a crease or a bevel, far above the quantization error, then weighs no more
-than one of ``c``, so the filter can smooth the ringing beside a crease without blurring the
-crease itself; ``c = T 2**(3 - k)`` for the :attr:`~bandelets.bitstream.LoopFilter.clip` code
-``k``, none for 0), plus, with
+6 or 12 taps; or, format version 12, of the 7 x 7 square, 24 taps), ``clip`` bounding each
+difference to ``+-c`` (as VVC's non-linear ALF does: a difference across a crease or a bevel,
+far above the quantization error, then weighs no more than one of ``c``, so the filter can
+smooth the ringing beside a crease without blurring the crease itself; ``c = T 2**(3 - k)`` for
+the :attr:`~bandelets.bitstream.LoopFilter.clip` code ``k``, none for 0), plus, with
 :attr:`~bandelets.bitstream.LoopFilter.cross`, the same second differences of every other
-channel over the 3 x 3 square (4 taps each: the ``x`` of a normal map has a say in its ``y``,
-the two being derivatives of one height). Written as corrections by second differences, a
-constant image is left as it is and the rounding of the coefficients (``k / 2**shift``) costs
-only where there is detail. Samples past the image's border are those of the border
-(replicated); the filter reads and writes the ``H x W`` image, not the wavelet padding.
+channel over the 3 x 3 or (format version 12) the 5 x 5 square (4 or 12 taps each: the ``x`` of
+a normal map has a say in its ``y``, the two being derivatives of one height; the wider square
+sees the mixed derivatives of the other channel over more pixels). Written as corrections by
+second differences, a constant image is left as it is and the rounding of the coefficients
+(``k / 2**shift``) costs only where there is detail. Samples past the image's border are those
+of the border (replicated); the filter reads and writes the ``H x W`` image, not the wavelet
+padding.
 
-The encoder (:func:`choose`) accumulates the normal equations of the largest shape at each
-clipping of :data:`CLIPS` (one compiled pass each, on a regular sample of the rows of a large
-image), solves those of every shape (sub-matrices), rounds the coefficients at every precision
-and keeps the clipping, shape and precision of least predicted ``error + LAMBDA T**2 bits`` (the
-rate-distortion trade-off of the rest of the encoder, :data:`bandelets.lagrangian.LAMBDA`), then
+The encoder (:func:`choose`) accumulates the normal equations of the largest diamond shape at
+each clipping of :data:`CLIPS` (one compiled pass each, on a regular sample of the rows of a large
+image), solves those of every diamond shape (sub-matrices), rounds the coefficients at every
+precision and keeps the clipping, shape and precision of least predicted ``error + LAMBDA T**2
+bits`` (the rate-distortion trade-off of the rest of the encoder,
+:data:`bandelets.lagrangian.LAMBDA`); the square shapes are fitted at that clipping only (one more
+pass: on the acacia door they keep 0.17 of their 0.20 dB so, for a third of the time), then
 applies that filter as the decoder will, measures the decoded image against the original with
 the caller's measure and keeps it only if the measured error falls by more than ``LAMBDA T**2``
 times its bits: it never writes a filter that measures worse than none at the price of its
@@ -48,15 +52,16 @@ numpy's solve.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from numba import njit
 
 from .bitstream import (
-    FILTER_CROSS_OFFSETS,
     MAX_FILTER_SHIFT,
     LoopFilter,
     filter_bytes,
+    filter_cross_offsets,
     filter_offsets,
     filter_taps,
     filter_width,
@@ -74,8 +79,11 @@ __all__ = [
     "reserve",
 ]
 
-#: Shapes the encoder tries, ``(radius, cross)``.
-SHAPES = ((2, False), (3, False), (3, True))
+#: Shapes the encoder tries, ``(radius, cross, square)``, those of cross-channel taps only within
+#: :func:`_most_cross`: the 5 x 5 cross-channel square gains 0.06 to 0.4 dB over the 3 x 3 at the
+#: price of its bytes (fitted, unrounded) on the real maps, the crease and the bevel map, the
+#: 7 x 7 square of own taps another 0.2 dB on the acacia door (BENCHMARKS, "Loop filter").
+SHAPES = ((2, 0, False), (3, 0, False), (3, 1, False), (3, 2, False), (3, 2, True))
 #: Pixels the encoder fits the filter on, at least: every row of an image of up to that many, a
 #: regular sample of the rows of a larger one (20 unknowns per channel at most).
 FIT_PIXELS = 2**16
@@ -85,13 +93,12 @@ CLIPS = (0, 1, 2, 3, 4, 5, 6)
 SHIFTS = range(4, min(17, MAX_FILTER_SHIFT + 1))
 
 
-def _table(radius: int, cross: bool, channels: int) -> np.ndarray:
-    """The taps of one channel's filter as rows ``(channel offset, dy, dx)``: the diamond of the
-    channel itself (channel offset 0), then with ``cross`` the 3 x 3 square of each other channel
-    (channel offsets 1 to C - 1, the channel ``(c + offset) % C``)."""
-    rows = [(0, dy, dx) for dy, dx in filter_offsets(radius)]
-    if cross:
-        rows += [(o, dy, dx) for o in range(1, channels) for dy, dx in FILTER_CROSS_OFFSETS]
+def _table(radius: int, cross: int, square: bool, channels: int) -> np.ndarray:
+    """The taps of one channel's filter as rows ``(channel offset, dy, dx)``: the diamond (or
+    ``square``) of the channel itself (channel offset 0), then the square of radius ``cross`` of
+    each other channel (channel offsets 1 to C - 1, the channel ``(c + offset) % C``)."""
+    rows = [(0, dy, dx) for dy, dx in filter_offsets(radius, square)]
+    rows += [(o, dy, dx) for o in range(1, channels) for dy, dx in filter_cross_offsets(cross)]
     return np.array(rows, np.int64).reshape(-1, 3)
 
 
@@ -157,8 +164,35 @@ def _normal_equations(x, residual, table, bound, stride):
             count = min(block, residual.shape[1] - first) * cols
             _features(x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f)
             f[n, :count] = residual[c, first : first + block].ravel()
-            total[c] += f[:, :count] @ f[:, :count].T
+            if n < _BLAS_ROWS:
+                total[c] += f[:, :count] @ f[:, :count].T
+            else:
+                _gram(f, count, total[c])
     return total[:, :n, :n] * stride, total[:, :n, n] * stride
+
+
+#: Rows of features (taps and the residual) up to which numpy's product makes the normal
+#: equations: OpenBLAS runs the products of 33 to 47 rows (the 7 x 7 square with the 5 x 5 of the
+#: other channel: 37) on several threads, which stall on a loaded machine (0.7 s for the 0.14 s
+#: of one thread on the 2-core machine), while it keeps those of up to 32 on one (0.04 s).
+_BLAS_ROWS = 32
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _gram(f, count, out):
+    """``out += f[:, :count] f[:, :count]'``, compiled: the normal equations of more than
+    :data:`_BLAS_ROWS` rows (only the square shapes', at one clipping)."""
+    n = f.shape[0]
+    for i in range(n):
+        a = f[i]
+        for j in range(i, n):
+            b = f[j]
+            s = 0.0
+            for k in range(count):
+                s += a[k] * b[k]
+            out[i, j] += s
+            if j != i:
+                out[j, i] += s
 
 
 #: Pixels of a block of the normal equations (:func:`_normal_equations`): 1.4 MB of features.
@@ -211,7 +245,7 @@ def apply(
     ndarray of float64, shape (C, height, width)
     """
     x = np.ascontiguousarray(channels[:, :height, :width], dtype=np.float64)
-    table = _table(loop_filter.radius, loop_filter.cross, x.shape[0])
+    table = _table(loop_filter.radius, loop_filter.cross, loop_filter.square, x.shape[0])
     weights = np.array(loop_filter.coefficients, np.float64).reshape(x.shape[0], -1) / 2.0**loop_filter.shift
     out = np.empty_like(x)
     _apply(x, table, weights, clip_bound(loop_filter.clip, threshold), out)
@@ -231,7 +265,19 @@ def reserve(channels: int) -> int:
     """Bytes a rate target leaves free for the loop filter of ``channels`` channels: its largest
     shape at :data:`RESERVE_WIDTH` bits a coefficient (:func:`bandelets.ratecontrol.for_size`
     caps it at half its tolerance)."""
-    return max(filter_bytes(channels, filter_taps(*shape, channels), RESERVE_WIDTH) for shape in SHAPES)
+    shapes = [shape for shape in SHAPES if shape[1] <= _most_cross(channels)]
+    return max(filter_bytes(channels, _taps(shape, channels), RESERVE_WIDTH) for shape in shapes)
+
+
+def _most_cross(channels: int) -> int:
+    """The widest cross-channel square the encoder tries for ``channels`` channels: the 5 x 5 for
+    two (a normal map's equidistant coordinates, where it was measured), the 3 x 3 for three."""
+    return {2: 2, 3: 1}.get(channels, 0)
+
+
+def _taps(shape: tuple[int, int, bool], channels: int) -> int:
+    radius, cross, square = shape
+    return filter_taps(radius, cross, channels, square)
 
 
 def choose(
@@ -273,33 +319,55 @@ def choose(
     count, height, width = target.shape
     x = np.ascontiguousarray(channels[:, :height, :width], dtype=np.float64)
     price = lam * threshold**2
-    shapes = [shape for shape in SHAPES if not shape[1] or 2 <= count <= 3]  # cross: 2 or 3 channels
-    full = _table(*max(shapes, key=lambda shape: filter_taps(*shape, count)), count)
-    rows = [tuple(r) for r in full.tolist()]
-    picks = {shape: [rows.index(tuple(r)) for r in _table(*shape, count).tolist()] for shape in shapes}
+    shapes = [shape for shape in SHAPES if shape[1] <= _most_cross(count)]
     stride = max(1, height * width // FIT_PIXELS)
     residual = target[:, ::stride] - x[:, ::stride]  # float64, as x
+    fit = partial(_proposal, x, residual, threshold=threshold, stride=stride, price=price, budget=budget)
     proposal, proposal_cost = None, 0.0
     for clip in CLIPS:
-        gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride)
-        for shape, pick in picks.items():
-            g, m = gram[:, pick][:, :, pick], moment[:, pick]
-            # A touch of ridge: a flat image (no detail at all) has a singular system.
-            ridge = 1e-9 * np.trace(g, axis1=1, axis2=2)[:, None, None] / len(pick) + 1e-300
-            w = np.linalg.solve(g + ridge * np.eye(len(pick)), m[..., None])[..., 0]
-            rounded = _rounded(w, g, m, price, budget)
-            if rounded is not None and rounded[0] < proposal_cost:
-                proposal_cost, proposal = rounded[0], (shape, clip, *rounded[1:])
+        cost, found = fit([shape for shape in shapes if not shape[2]], clip)
+        if cost < proposal_cost:
+            proposal_cost, proposal = cost, found
+    squares = [shape for shape in shapes if shape[2]]
+    if proposal is not None and squares:
+        cost, found = fit(squares, proposal[1])
+        if cost < proposal_cost:
+            proposal_cost, proposal = cost, found
     if proposal is None:
         return None, None
-    (radius, cross), clip, shift, q, bits = proposal
+    (radius, cross, square), clip, shift, q, bits = proposal
     found = LoopFilter(
-        radius=radius, cross=cross, clip=clip, shift=shift, coefficients=tuple(q.ravel().tolist())
+        radius=radius,
+        cross=cross,
+        square=square,
+        clip=clip,
+        shift=shift,
+        coefficients=tuple(q.ravel().tolist()),
     )
     out = apply(x, found, threshold, height, width)
     if error(out) + price * bits >= error(x):
         return None, None
     return found, out
+
+
+def _proposal(x, residual, shapes, clip, *, threshold, stride, price, budget):
+    """The least predicted cost (below 0) of the ``shapes`` at ``clip`` and its ``(shape, clip,
+    shift, integers, bits)`` (None if none is below 0), from the normal equations of the largest."""
+    count = x.shape[0]
+    full = _table(*max(shapes, key=lambda shape: _taps(shape, count)), count)
+    rows = [tuple(r) for r in full.tolist()]
+    gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride)
+    best, best_cost = None, 0.0
+    for shape in shapes:
+        pick = [rows.index(tuple(r)) for r in _table(*shape, count).tolist()]
+        g, m = gram[:, pick][:, :, pick], moment[:, pick]
+        # A touch of ridge: a flat image (no detail at all) has a singular system.
+        ridge = 1e-9 * np.trace(g, axis1=1, axis2=2)[:, None, None] / len(pick) + 1e-300
+        w = np.linalg.solve(g + ridge * np.eye(len(pick)), m[..., None])[..., 0]
+        rounded = _rounded(w, g, m, price, budget)
+        if rounded is not None and rounded[0] < best_cost:
+            best_cost, best = rounded[0], (shape, clip, *rounded[1:])
+    return best_cost, best
 
 
 def _rounded(w, gram, moment, price, budget):
