@@ -25,7 +25,7 @@ BC5 does: its Z is rebuilt, ``sqrt(1 - x^2 - y^2)``, into an 8-bit RGB map that 
 given. The tables (PSNR per point, BD-PSNR of the first codec of ``--codecs``, ``lifting`` by
 default, over every other codec, positive: the first better) are printed and stored in
 ``benchmarks/rd-normal-maps-real.md`` (with ``--samples``,
-``benchmarks/rd-normal-maps-samples-SIZE.md``).
+``benchmarks/rd-normal-maps-samples-SIZE.md``; ``--results PATH`` elsewhere).
 """
 
 from __future__ import annotations
@@ -108,6 +108,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("out/rd-normal-maps"))
     parser.add_argument("--samples", nargs="+", choices=SAMPLES, help="generated maps instead of --maps")
     parser.add_argument("--size", type=int, default=256, help="side of the generated maps (256)")
+    parser.add_argument("--results", type=Path, help="where the tables go (default: see above)")
     parser.add_argument(
         "--codecs",
         default=",".join(CODECS),
@@ -166,6 +167,9 @@ def main() -> None:
         command += f" --samples {' '.join(args.samples)} --size {args.size}"
     if codecs != list(CODECS):
         command += f" --codecs {','.join(codecs)}"
+    if args.results:
+        results = args.results
+        command += f" --results {args.results}"
     results.write_text(f"# `{command}`\n\n{anchors.versions()}\n\n" + text)
     print("\n" + "\n".join(summary))
 
