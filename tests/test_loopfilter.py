@@ -19,6 +19,8 @@ from bandelets.bitstream import (
     FormatError,
     Header,
     LoopFilter,
+    filter_cross_offsets,
+    filter_offsets,
     filter_taps,
     pack,
     unpack,
@@ -74,6 +76,38 @@ def test_filter_shapes_count_their_taps():
     assert [filter_taps(3, cross, 3) for cross in (0, 1, 2)] == [12, 12 + 2 * 4, 12 + 2 * 12]
     assert filter_taps(2, 2, 1) == 6
     assert [filter_taps(radius, 0, 1, square=True) for radius in (1, 2, 3)] == [4, 12, 24]
+
+
+@pytest.mark.parametrize(
+    ("radius", "cross", "square", "clip"), [(2, 0, False, 0), (3, 1, False, 3), (3, 2, True, 2)]
+)
+def test_the_filter_is_the_clipped_second_differences_of_its_offsets(radius, cross, square, clip):
+    """``apply`` against numpy: each channel plus the weighted clipped second differences of its own
+    diamond or square and of the other channel's square, the border replicated."""
+    rng = np.random.default_rng(radius + cross)
+    x = rng.normal(size=(2, 19, 23))
+    n = filter_taps(radius, cross, 2, square)
+    f = LoopFilter(
+        radius=radius,
+        cross=cross,
+        square=square,
+        clip=clip,
+        shift=6,
+        coefficients=tuple(rng.integers(-40, 40, 2 * n)),
+    )
+    out = loopfilter.apply(x, f, 0.5, 19, 23)
+    bound = loopfilter.clip_bound(clip, 0.5)
+    padded = np.pad(x, ((0, 0), (3, 3), (3, 3)), mode="edge")
+    for c in range(2):
+        taps = [(c, o) for o in filter_offsets(radius, square)] + [
+            (1 - c, o) for o in filter_cross_offsets(cross)
+        ]
+        expected = x[c].copy()
+        for (k, (dy, dx)), w in zip(taps, f.coefficients[c * n : (c + 1) * n], strict=True):
+            plus = padded[k, 3 + dy : 3 + dy + 19, 3 + dx : 3 + dx + 23] - x[k]
+            minus = padded[k, 3 - dy : 3 - dy + 19, 3 - dx : 3 - dx + 23] - x[k]
+            expected += w / 64 * (np.clip(plus, -bound, bound) + np.clip(minus, -bound, bound))
+        np.testing.assert_allclose(out[c], expected, atol=1e-12)
 
 
 def test_the_encoders_filter_is_what_the_decoder_applies():
