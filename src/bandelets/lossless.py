@@ -1,0 +1,318 @@
+"""Lossless coding of integer samples (8 or 16-bit PNG and TIFF sources): the file decodes to the
+source's samples bit for bit, every stored channel (format version 12, transform ``lossless``).
+
+How: the samples are visited row by row, the channels of a row in turn, and each is predicted
+from its already coded neighbours by the median edge detector of LOCO-I (JPEG-LS: the left or
+the upper neighbour at an edge, the plane through left, up and up-left elsewhere), corrected by
+the mean of the residuals met before in its context (JPEG-LS's bias cancellation). The residual
+goes through the project's adaptive binary range coder (:mod:`bandelets.entropy`): a zero flag,
+a sign, an Elias-gamma magnitude with an adaptive prefix and the first bit below it in context.
+The context of a sample is its channel, the activity around it (the gradients of its
+neighbourhood, in octaves) and, for the second channel on, the magnitude of the residual of
+the previous channel at the same pixel (the channels of a normal map err together at its
+creases).
+
+Why written here: libraries that code losslessly (libjxl, libavif, libpng through imagecodecs)
+write their own containers; a .bdl file has one format, one header and one CRC, read by one
+decoder with its limits (:mod:`bandelets.bitstream`). The coder is the project's, compiled with
+numba with the context modelling as :mod:`bandelets.entropy` is.
+
+The encoder may be given a budget of bytes (:func:`encode_samples`): it stops as soon as the
+file would exceed it, so that trying the lossless file under a rate target costs little when
+it does not fit (:func:`bandelets.encoder.encode_with_stats`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .bitstream import DEFAULT_WAVELET, HEADER_BYTES, LOSSLESS, Header, implied_options, pack
+from .entropy import (
+    POSITION,
+    Coder,
+    CorruptStream,
+    code_backed,
+    code_bit,
+    code_raw_bit,
+    keep_registers,
+    registers,
+)
+
+__all__ = ["N_CONTEXTS", "decode_file", "decode_samples", "encode_file", "encode_samples", "samples_of"]
+
+#: Activity buckets: 0, then the octave of the summed gradients (1, 2-3, 4-7, ...).
+_N_ACTIVITY = 12
+#: Buckets of the previous channel's residual magnitude at the same pixel: 0, 1, 2-3, 4+, and
+#: "first channel".
+_N_CROSS = 5
+_PREFIX = 18  # Elias-gamma prefix contexts: a 16-bit residual has at most 17 bits
+# The coarse contexts (channel x activity x cross bucket), each a group of decisions.
+_ZERO, _SIGN, _PREFIX_AT, _FIRST_BIT = 0, 1, 2, 2 + _PREFIX
+_GROUP = _FIRST_BIT + _PREFIX
+_N_COARSE = 4 * _N_ACTIVITY * _N_CROSS
+# The fine contexts: channel x three signed gradients quantized to -3..3 x the previous channel's
+# residual clipped to -2..2 (or none), one per pair of contexts of opposite signs; each refines
+# its coarse one in the zero flag, the sign and the first three decisions of the prefix.
+_N_FINE = 4 * 7**3 * 6
+_FINE_SLOTS = 5
+_FINE = _N_COARSE * _GROUP
+#: Contexts of the coefficient stream of a lossless file, for at most 4 channels.
+N_CONTEXTS = _FINE + _N_FINE * _FINE_SLOTS
+#: The bias correction's running sums are halved after this many samples of a context.
+_BIAS_WINDOW = 64
+
+
+_kernel = njit(cache=True, nogil=True, _nrt=False)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _octave(v):
+    n = 0
+    while v > 0 and n < _N_ACTIVITY - 1:
+        v >>= 1
+        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _level(d, shift):
+    """A gradient quantized to -3..3: 0, 1, 2-3, 4+ (after ``shift``), signed."""
+    v = abs(d) >> shift
+    q = 0 if v == 0 else 1 if v == 1 else 2 if v <= 3 else 3
+    return -q if d < 0 else q
+
+
+@_kernel
+def _code(st, buf, probs, counts, x, residuals, sums, uses, top, shift, rows, budget, decoding):
+    """Code (``decoding`` False) or decode the rows ``rows[0]`` to ``rows[1] - 1`` of the samples
+    ``x`` (C, H, W), int64 in ``[0, top]``; gradients are quantized after a right ``shift``.
+
+    ``residuals`` (C, H, W), ``sums`` and ``uses`` (one per fine context) are scratch arrays,
+    zeros at the first row, kept from one call to the next with ``x`` and the coder. Returns 0,
+    1 when the encoder went past ``budget`` bytes (it stops at the end of the row), -1 for a
+    corrupt stream.
+    """
+    n_channels, height, width = x.shape
+    r = registers(st)
+    status = 0
+    middle = (top + 1) // 2
+    for i in range(rows[0], rows[1]):
+        for c in range(n_channels):
+            for j in range(width):
+                # Neighbours, replicated where they fall outside the image.
+                if j > 0:
+                    a = x[c, i, j - 1]
+                elif i > 0:
+                    a = x[c, i - 1, j]
+                else:
+                    a = middle
+                b = x[c, i - 1, j] if i > 0 else a
+                nw = x[c, i - 1, j - 1] if i > 0 and j > 0 else b
+                ne = x[c, i - 1, j + 1] if i > 0 and j + 1 < width else b
+                ww = x[c, i, j - 2] if j > 1 else a
+                # The median edge detector of LOCO-I.
+                if nw >= max(a, b):
+                    predicted = min(a, b)
+                elif nw <= min(a, b):
+                    predicted = max(a, b)
+                else:
+                    predicted = a + b - nw
+                g1, g2, g3 = ne - b, b - nw, nw - a
+                q1, q2, q3 = _level(g1, shift), _level(g2, shift), _level(g3, shift)
+                e = residuals[c - 1, i, j] if c > 0 else 0
+                q4 = min(max(e, -2), 2)
+                # A context and its mirror (every sign turned) share their statistics, the
+                # residual's sign turned.
+                flip = 1
+                if q1 < 0 or (q1 == 0 and (q2 < 0 or (q2 == 0 and (q3 < 0 or (q3 == 0 and q4 < 0))))):
+                    flip = -1
+                    q1, q2, q3, q4 = -q1, -q2, -q3, -q4
+                fine = ((c * 7 + q1 + 3) * 7 + q2 + 3) * 7 + q3 + 3
+                fine = fine * 6 + (q4 + 2 if c > 0 else 5)
+                ew = abs(residuals[c, i, j - 1]) if j > 0 else 0
+                en = abs(residuals[c, i - 1, j]) if i > 0 else 0
+                ene = abs(residuals[c, i - 1, j + 1]) if i > 0 and j + 1 < width else en
+                activity = _octave(abs(g1) + abs(g2) + abs(g3) + abs(a - ww) + 2 * (ew + en) + ene)
+                cross = min(_octave(abs(e)), _N_CROSS - 2) if c > 0 else _N_CROSS - 1
+                coarse = ((c * _N_ACTIVITY + activity) * _N_CROSS + cross) * _GROUP
+                # Bias cancellation: the mean residual of the context, rounded.
+                n = uses[fine]
+                if n > 0:
+                    s = sums[fine]
+                    bias = (2 * s + n) // (2 * n) if s >= 0 else -((-2 * s + n) // (2 * n))
+                    predicted += flip * bias
+                predicted = min(max(predicted, 0), top)
+                ctx = _FINE + fine * _FINE_SLOTS
+                value = 0 if decoding else flip * (x[c, i, j] - predicted)
+                m = abs(value)
+                nonzero, r = code_backed(
+                    r, buf, probs, counts, ctx, coarse + _ZERO, 1 if m > 0 else 0, decoding
+                )
+                if nonzero:
+                    negative, r = code_backed(
+                        r, buf, probs, counts, ctx + 1, coarse + _SIGN, 1 if value < 0 else 0, decoding
+                    )
+                    # Elias gamma of m >= 1: the octave in unary, then the bits below it.
+                    octave = 0
+                    while (m >> (octave + 1)) > 0:
+                        octave += 1
+                    k = 0
+                    while True:
+                        bit = 1 if k < octave else 0
+                        at = coarse + _PREFIX_AT + min(k, _PREFIX - 1)
+                        if k < 3:
+                            more, r = code_backed(r, buf, probs, counts, ctx + 2 + k, at, bit, decoding)
+                        else:
+                            more, r = code_bit(r, buf, probs, counts, at, bit, decoding)
+                        if more == 0:
+                            break
+                        k += 1
+                        if k >= _PREFIX:
+                            status = -1
+                            break
+                    if status != 0:
+                        break
+                    out = 1
+                    for low in range(k - 1, -1, -1):
+                        bit = (m >> low) & 1
+                        if low == k - 1:
+                            bit, r = code_bit(r, buf, probs, counts, coarse + _FIRST_BIT + k, bit, decoding)
+                        else:
+                            bit, r = code_raw_bit(r, buf, bit, decoding)
+                        out = 2 * out + bit
+                    value = -out if negative else out
+                if decoding:
+                    sample = predicted + flip * value
+                    if sample < 0 or sample > top:
+                        status = -1
+                        break
+                    x[c, i, j] = sample
+                residuals[c, i, j] = flip * value
+                if n == _BIAS_WINDOW:
+                    sums[fine] >>= 1
+                    n >>= 1
+                sums[fine] += value
+                uses[fine] = n + 1
+            if status != 0:
+                break
+        if status != 0:
+            break
+        if not decoding and r[POSITION] > budget:
+            status = 1
+            break
+    keep_registers(st, r)
+    return status
+
+
+#: Most bytes one sample can take: 2 depth + 3 decisions (zero, sign, prefix, bits), each of at
+#: most 11 bits (the probabilities stay within 32 / 65536 of 0 and 1).
+def _worst_bytes(depth: int) -> int:
+    return (2 * depth + 3) * 11 // 8 + 1
+
+
+def _run(coder: Coder, x: np.ndarray, depth: int, budget: int | None) -> int:
+    """Code or decode the samples ``x`` (C, H, W) in chunks of rows, the encoder's buffer grown
+    before each to hold its worst case; the status of :func:`_code`."""
+    scratch = np.zeros(x.shape, np.int64), np.zeros(_N_FINE, np.int64), np.zeros(_N_FINE, np.int64)
+    row_bytes = x.shape[0] * x.shape[2] * _worst_bytes(depth)
+    chunk = max(1, 2**20 // row_bytes)
+    limit = np.iinfo(np.int64).max if budget is None else budget
+    for start in range(0, x.shape[1], chunk):
+        stop = min(start + chunk, x.shape[1])
+        coder.reserve(row_bytes * (stop - start))
+        rows = np.array([start, stop], np.int64)
+        args = (coder.state, coder.buf, coder.probs, coder.counts, x, *scratch)
+        status = _code(*args, 2**depth - 1, (depth - 8) // 2, rows, limit, coder.decoding)
+        if status != 0:
+            return status
+    return 0
+
+
+def encode_samples(samples: np.ndarray, depth: int, budget: int | None = None) -> bytes | None:
+    """The coded stream of integer samples, or None when it would exceed ``budget`` bytes.
+
+    Parameters
+    ----------
+    samples : ndarray of unsigned integers, shape (H, W, C), C from 1 to 4
+    depth : {8, 16}
+        Bits of every sample.
+    budget : int, optional
+        Stop and return None as soon as the stream passes this many bytes.
+    """
+    x = np.ascontiguousarray(np.moveaxis(samples, -1, 0), np.int64)
+    coder = Coder(N_CONTEXTS)
+    if _run(coder, x, depth, budget) != 0:
+        return None
+    data = coder.finish()
+    return data if budget is None or len(data) <= budget else None
+
+
+def decode_samples(data: bytes, height: int, width: int, channels: int, depth: int) -> np.ndarray:
+    """The samples a stream of :func:`encode_samples` holds, ``uint8`` or ``uint16`` (H, W, C);
+    :class:`bandelets.entropy.CorruptStream` when it holds none."""
+    coder = Coder(N_CONTEXTS, data)
+    x = np.zeros((channels, height, width), np.int64)
+    if _run(coder, x, depth, None) != 0:
+        raise CorruptStream("coded sample stream is corrupt")
+    coder.check()
+    return np.ascontiguousarray(np.moveaxis(x, 0, -1), np.uint8 if depth == 8 else np.uint16)
+
+
+def samples_of(array, kind: str, depth: int) -> tuple[np.ndarray, int] | None:
+    """The unsigned integer samples (H, W, C) an array stands for and their depth, or None.
+
+    ``array``: ``uint8`` / ``uint16`` samples of a normal map, or values read from samples of
+    ``depth`` bits (:func:`bandelets.files.from_samples`: what the command line reads from a PNG
+    or TIFF file) of any kind but a geometry image. Floats off that grid (or ``depth`` 0) are not
+    samples. ``ValueError`` for an array that no encoding takes (its shape, a normal map's
+    integer type).
+    """
+    from .files import from_samples, integer_samples, to_samples
+
+    values, depth = integer_samples(np.asarray(array), kind, depth)
+    if kind == "geometry-image" or depth not in (8, 16) or values.dtype.kind not in "f":
+        return None
+    values = values[..., None] if values.ndim == 2 else values
+    channels = values.shape[2] if values.ndim == 3 else 0
+    if (
+        not (1 <= channels <= 4 and (kind == "image" or channels in (2, 3)))
+        or values.shape[0] * values.shape[1] < 2
+    ):
+        return None
+    samples = to_samples(values, kind, depth)
+    return (samples, depth) if np.array_equal(from_samples(samples, kind, depth), values) else None
+
+
+def encode_file(samples: np.ndarray, kind: str, depth: int, budget: int | None = None) -> bytes | None:
+    """The lossless .bdl file of ``samples`` (H, W, C) of ``depth`` bits, or None when it would
+    be larger than ``budget`` bytes."""
+    height, width, channels = samples.shape
+    header = Header(
+        height=height,
+        width=width,
+        channels=channels,
+        kind=kind,
+        transform=LOSSLESS,
+        wavelet=DEFAULT_WAVELET,
+        levels=1,
+        threshold=1.0,
+        depth=depth,
+        layout="xy" if kind == "normal-map" and channels == 2 else "xyz",
+        **implied_options(kind, channels),
+    )
+    room = None if budget is None else budget - HEADER_BYTES
+    if room is not None and room < 0:
+        return None
+    stream = encode_samples(samples, depth, room)
+    return None if stream is None else pack(header, (b"", b"", stream))
+
+
+def decode_file(header: Header, stream: bytes) -> np.ndarray:
+    """What :func:`bandelets.decode` returns for a lossless file: the values of its samples
+    (:func:`bandelets.files.from_samples`), (H, W) or (H, W, C)."""
+    from .files import from_samples
+
+    samples = decode_samples(stream, header.height, header.width, header.channels, header.depth)
+    values = from_samples(samples, header.kind, header.depth)
+    return values[..., 0] if header.channels == 1 else values
