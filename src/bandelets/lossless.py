@@ -34,6 +34,7 @@ from .entropy import (
     CorruptStream,
     code_backed,
     code_bit,
+    code_flags,
     code_raw_bit,
     keep_registers,
     registers,
@@ -54,13 +55,16 @@ _N_COARSE = 4 * _N_ACTIVITY * _N_CROSS
 # The fine contexts: channel x three signed gradients quantized to -3..3 x the previous channel's
 # residual clipped to -2..2 (or none), one per pair of contexts of opposite signs; each refines
 # its coarse one in the zero flag, the sign and the first three decisions of the prefix.
-_N_FINE = 4 * 7**3 * 6
+_N_FINE = 4 * 7**3 * 6 * 4
 _FINE_SLOTS = 5
 _FINE = _N_COARSE * _GROUP
+# The context of the predictor's flag, the stream's first decision (0 median, 1 blend).
+_MODE = _FINE + _N_FINE * _FINE_SLOTS
 #: Contexts of the coefficient stream of a lossless file, for at most 4 channels.
-N_CONTEXTS = _FINE + _N_FINE * _FINE_SLOTS
+N_CONTEXTS = _MODE + 1
 #: The bias correction's running sums are halved after this many samples of a context.
 _BIAS_WINDOW = 64
+_N_PREDICTORS = 4
 
 
 _kernel = njit(cache=True, nogil=True, _nrt=False)
@@ -83,8 +87,33 @@ def _level(d, shift):
     return -q if d < 0 else q
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _blend(errors, c, i, j, p0, p1, p2, p3):
+    """The mean of the predictions ``p0`` to ``p3`` (median, plane, left, up), each weighted by
+    the inverse square of the error it made at the four neighbours above and to the left."""
+    width = errors.shape[3]
+    total = np.int64(0)
+    weighted = np.int64(0)
+    for k in range(_N_PREDICTORS):
+        err = 1
+        if j > 0:
+            err += errors[k, c, i, j - 1]
+        if i > 0:
+            err += errors[k, c, i - 1, j]
+            if j > 0:
+                err += errors[k, c, i - 1, j - 1]
+            if j + 1 < width:
+                err += errors[k, c, i - 1, j + 1]
+        w = max((np.int64(1) << 40) // (err * err), np.int64(1))
+        total += w
+        weighted += w * (p0 if k == 0 else p1 if k == 1 else p2 if k == 2 else p3)
+    return (2 * weighted + total) // (2 * total)
+
+
 @_kernel
-def _code(st, buf, probs, counts, x, residuals, sums, uses, top, shift, rows, budget, decoding):
+def _code(
+    st, buf, probs, counts, x, residuals, errors, sums, uses, top, shift, blend, rows, budget, decoding
+):
     """Code (``decoding`` False) or decode the rows ``rows[0]`` to ``rows[1] - 1`` of the samples
     ``x`` (C, H, W), int64 in ``[0, top]``; gradients are quantized after a right ``shift``.
 
@@ -113,11 +142,15 @@ def _code(st, buf, probs, counts, x, residuals, sums, uses, top, shift, rows, bu
                 ww = x[c, i, j - 2] if j > 1 else a
                 # The median edge detector of LOCO-I.
                 if nw >= max(a, b):
-                    predicted = min(a, b)
+                    med = min(a, b)
                 elif nw <= min(a, b):
-                    predicted = max(a, b)
+                    med = max(a, b)
                 else:
-                    predicted = a + b - nw
+                    med = a + b - nw
+                predicted = med
+                if blend:
+                    predicted = _blend(errors, c, i, j, med, a + b - nw, a, b)
+
                 g1, g2, g3 = ne - b, b - nw, nw - a
                 q1, q2, q3 = _level(g1, shift), _level(g2, shift), _level(g3, shift)
                 e = residuals[c - 1, i, j] if c > 0 else 0
@@ -130,6 +163,11 @@ def _code(st, buf, probs, counts, x, residuals, sums, uses, top, shift, rows, bu
                     q1, q2, q3, q4 = -q1, -q2, -q3, -q4
                 fine = ((c * 7 + q1 + 3) * 7 + q2 + 3) * 7 + q3 + 3
                 fine = fine * 6 + (q4 + 2 if c > 0 else 5)
+                energy = (abs(residuals[c, i, j - 1]) if j > 0 else 0) + (
+                    abs(residuals[c, i - 1, j]) if i > 0 else 0
+                )
+                energy >>= shift
+                fine = fine * 4 + (0 if energy == 0 else 1 if energy <= 2 else 2 if energy <= 6 else 3)
                 ew = abs(residuals[c, i, j - 1]) if j > 0 else 0
                 en = abs(residuals[c, i - 1, j]) if i > 0 else 0
                 ene = abs(residuals[c, i - 1, j + 1]) if i > 0 and j + 1 < width else en
@@ -189,6 +227,12 @@ def _code(st, buf, probs, counts, x, residuals, sums, uses, top, shift, rows, bu
                         break
                     x[c, i, j] = sample
                 residuals[c, i, j] = flip * value
+                if blend:
+                    sample = x[c, i, j]
+                    errors[0, c, i, j] = abs(sample - med)
+                    errors[1, c, i, j] = abs(sample - (a + b - nw))
+                    errors[2, c, i, j] = abs(sample - a)
+                    errors[3, c, i, j] = abs(sample - b)
                 if n == _BIAS_WINDOW:
                     sums[fine] >>= 1
                     n >>= 1
@@ -211,10 +255,11 @@ def _worst_bytes(depth: int) -> int:
     return (2 * depth + 3) * 11 // 8 + 1
 
 
-def _run(coder: Coder, x: np.ndarray, depth: int, budget: int | None) -> int:
+def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, budget: int | None) -> int:
     """Code or decode the samples ``x`` (C, H, W) in chunks of rows, the encoder's buffer grown
     before each to hold its worst case; the status of :func:`_code`."""
-    scratch = np.zeros(x.shape, np.int64), np.zeros(_N_FINE, np.int64), np.zeros(_N_FINE, np.int64)
+    errors = np.zeros((_N_PREDICTORS, *x.shape) if blend else (_N_PREDICTORS, 0, 0, 0), np.int64)
+    scratch = np.zeros(x.shape, np.int64), errors, np.zeros(_N_FINE, np.int64), np.zeros(_N_FINE, np.int64)
     row_bytes = x.shape[0] * x.shape[2] * _worst_bytes(depth)
     chunk = max(1, 2**20 // row_bytes)
     limit = np.iinfo(np.int64).max if budget is None else budget
@@ -223,7 +268,7 @@ def _run(coder: Coder, x: np.ndarray, depth: int, budget: int | None) -> int:
         coder.reserve(row_bytes * (stop - start))
         rows = np.array([start, stop], np.int64)
         args = (coder.state, coder.buf, coder.probs, coder.counts, x, *scratch)
-        status = _code(*args, 2**depth - 1, (depth - 8) // 2, rows, limit, coder.decoding)
+        status = _code(*args, 2**depth - 1, (depth - 8) // 2, blend, rows, limit, coder.decoding)
         if status != 0:
             return status
     return 0
@@ -231,6 +276,11 @@ def _run(coder: Coder, x: np.ndarray, depth: int, budget: int | None) -> int:
 
 def encode_samples(samples: np.ndarray, depth: int, budget: int | None = None) -> bytes | None:
     """The coded stream of integer samples, or None when it would exceed ``budget`` bytes.
+
+    Both predictors are tried (the median edge detector, then the blend, :func:`_blend`) and the
+    smaller stream kept: its first decision says which. The median wins on the lava map (a
+    palette of 175 vectors: 1.27 against 1.69 bpp), the blend on smooth 16-bit maps (the bumps
+    map at 256: 20.4 against 22.4 bpp) and the acacia door (18.2 against 18.5).
 
     Parameters
     ----------
@@ -241,11 +291,17 @@ def encode_samples(samples: np.ndarray, depth: int, budget: int | None = None) -
         Stop and return None as soon as the stream passes this many bytes.
     """
     x = np.ascontiguousarray(np.moveaxis(samples, -1, 0), np.int64)
-    coder = Coder(N_CONTEXTS)
-    if _run(coder, x, depth, budget) != 0:
-        return None
-    data = coder.finish()
-    return data if budget is None or len(data) <= budget else None
+    best = None
+    for blend in (False, True):
+        coder = Coder(N_CONTEXTS)
+        code_flags(coder, np.array([int(blend)]), np.array([_MODE]))
+        if _run(coder, x, depth, blend, budget) == 0:
+            data = coder.finish()
+            if (budget is None or len(data) <= budget) and (best is None or len(data) < len(best)):
+                best = data
+        if best is not None:
+            budget = len(best) - 1  # the second need only beat the first
+    return best
 
 
 def decode_samples(data: bytes, height: int, width: int, channels: int, depth: int) -> np.ndarray:
@@ -253,7 +309,8 @@ def decode_samples(data: bytes, height: int, width: int, channels: int, depth: i
     :class:`bandelets.entropy.CorruptStream` when it holds none."""
     coder = Coder(N_CONTEXTS, data)
     x = np.zeros((channels, height, width), np.int64)
-    if _run(coder, x, depth, None) != 0:
+    blend = bool(code_flags(coder, np.zeros(1, np.int64), np.array([_MODE]))[0])
+    if _run(coder, x, depth, blend, None) != 0:
         raise CorruptStream("coded sample stream is corrupt")
     coder.check()
     return np.ascontiguousarray(np.moveaxis(x, 0, -1), np.uint8 if depth == 8 else np.uint16)
