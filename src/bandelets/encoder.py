@@ -546,6 +546,12 @@ def _lossless(array, options: EncodeOptions, measured: bool, bpp: float | None =
     ``array`` has no integer samples or the file would be larger than ``bpp``; without,
     ``ValueError`` when ``array`` has no integer samples. ``measured``: the file is decoded and
     compared with the samples (PSNR infinite)."""
+    shape = np.shape(array)
+    if bpp is not None and len(shape) in (2, 3):
+        try:  # the lossless coder works in one piece: an image that needs tiles is coded lossy
+            check_encodable(*shape[:2], shape[2] if len(shape) == 3 else 1, options.max_memory, tile=0)
+        except ValueError:
+            return None
     found = lossless.samples_of(array, options.kind, options.depth)
     if found is None:
         if bpp is not None:
