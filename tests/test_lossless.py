@@ -137,3 +137,11 @@ def test_cli_lossless_of_a_float_source_is_a_one_line_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "needs integer samples" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "m.bdl").exists()
+
+
+def test_a_blue_that_is_the_z_of_red_and_green_costs_little():
+    samples = _smooth_map(64, 16)
+    three = lossless.encode_samples(samples, 16, normals=True)
+    two = lossless.encode_samples(np.ascontiguousarray(samples[..., :2]), 16)
+    plain = lossless.encode_samples(samples, 16)  # without the unit-vector prediction of z
+    assert len(three) < 1.1 * len(two) < len(plain)

@@ -58,10 +58,11 @@ _N_COARSE = 4 * _N_ACTIVITY * _N_CROSS
 _N_FINE = 4 * 7**3 * 6 * 4
 _FINE_SLOTS = 5
 _FINE = _N_COARSE * _GROUP
-# The context of the predictor's flag, the stream's first decision (0 median, 1 blend).
+# The contexts of the predictors' flags, the stream's first two decisions (0 median, 1 blend;
+# the third channel predicted as the z of unit vectors).
 _MODE = _FINE + _N_FINE * _FINE_SLOTS
 #: Contexts of the coefficient stream of a lossless file, for at most 4 channels.
-N_CONTEXTS = _MODE + 1
+N_CONTEXTS = _MODE + 2
 #: The bias correction's running sums are halved after this many samples of a context.
 _BIAS_WINDOW = 64
 _N_PREDICTORS = 4
@@ -110,9 +111,21 @@ def _blend(errors, c, i, j, p0, p1, p2, p3):
     return (2 * weighted + total) // (2 * total)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _unit_z(red, green, top):
+    """The sample of ``z = sqrt(1 - x^2 - y^2)`` of the unit vector whose ``x, y`` have the
+    samples ``red, green`` (as :func:`bandelets.files.from_samples` and
+    :func:`bandelets.files.to_samples` map them; 0 beyond the unit disc)."""
+    x = 2.0 * (red / top) - 1.0
+    y = 2.0 * (green / top) - 1.0
+    zz = 1.0 - (x * x + y * y)
+    z = np.sqrt(zz) if zz > 0.0 else 0.0
+    return np.int64(np.rint((z + 1.0) / 2.0 * top))
+
+
 @_kernel
 def _code(
-    st, buf, probs, counts, x, residuals, errors, sums, uses, top, shift, blend, rows, budget, decoding
+    st, buf, probs, counts, x, residuals, errors, sums, uses, top, shift, blend, unit, rows, budget, decoding
 ):
     """Code (``decoding`` False) or decode the rows ``rows[0]`` to ``rows[1] - 1`` of the samples
     ``x`` (C, H, W), int64 in ``[0, top]``; gradients are quantized after a right ``shift``.
@@ -148,7 +161,9 @@ def _code(
                 else:
                     med = a + b - nw
                 predicted = med
-                if blend:
+                if unit and c == 2:
+                    predicted = _unit_z(x[0, i, j], x[1, i, j], top)
+                elif blend:
                     predicted = _blend(errors, c, i, j, med, a + b - nw, a, b)
 
                 g1, g2, g3 = ne - b, b - nw, nw - a
@@ -255,7 +270,7 @@ def _worst_bytes(depth: int) -> int:
     return (2 * depth + 3) * 11 // 8 + 1
 
 
-def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, budget: int | None) -> int:
+def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, unit: bool, budget: int | None) -> int:
     """Code or decode the samples ``x`` (C, H, W) in chunks of rows, the encoder's buffer grown
     before each to hold its worst case; the status of :func:`_code`."""
     errors = np.zeros((_N_PREDICTORS, *x.shape) if blend else (_N_PREDICTORS, 0, 0, 0), np.int64)
@@ -268,19 +283,37 @@ def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, budget: int | Non
         coder.reserve(row_bytes * (stop - start))
         rows = np.array([start, stop], np.int64)
         args = (coder.state, coder.buf, coder.probs, coder.counts, x, *scratch)
-        status = _code(*args, 2**depth - 1, (depth - 8) // 2, blend, rows, limit, coder.decoding)
+        status = _code(*args, 2**depth - 1, (depth - 8) // 2, blend, unit, rows, limit, coder.decoding)
         if status != 0:
             return status
     return 0
 
 
-def encode_samples(samples: np.ndarray, depth: int, budget: int | None = None) -> bytes | None:
+def _unit_pays(samples: np.ndarray, depth: int) -> bool:
+    """Whether the third channel of ``samples`` (H, W, 3) is closer to the ``z`` of unit vectors
+    made from the first two (:func:`_unit_z`) than to its left neighbour, summed over the image:
+    a normal map whose blue is ``z``, not something else (ambient occlusion)."""
+    from .files import from_samples, to_samples
+    from .metrics import with_z
+
+    blue = samples[..., 2].astype(np.int64)
+    z = to_samples(with_z(from_samples(samples[..., :2], "normal-map", depth)), "normal-map", depth)[..., 2]
+    return int(np.abs(blue - z).sum()) < int(np.abs(np.diff(blue, axis=1)).sum())
+
+
+def encode_samples(
+    samples: np.ndarray, depth: int, budget: int | None = None, normals: bool = False
+) -> bytes | None:
     """The coded stream of integer samples, or None when it would exceed ``budget`` bytes.
 
     Both predictors are tried (the median edge detector, then the blend, :func:`_blend`) and the
     smaller stream kept: its first decision says which. The median wins on the lava map (a
     palette of 175 vectors: 1.27 against 1.69 bpp), the blend on smooth 16-bit maps (the bumps
-    map at 256: 20.4 against 22.4 bpp) and the acacia door (18.2 against 18.5).
+    map at 256: 20.4 against 22.4 bpp) and the acacia door (18.2 against 18.5). With
+    ``normals`` (the channels of a normal map, x, y, z), the third channel is predicted as the
+    ``z`` of the unit vector of the first two (:func:`_unit_z`) where that is the closer guess
+    (:func:`_unit_pays`; the second decision says so): on the acacia door whose z is rebuilt,
+    the z channel costs nothing but its rounding.
 
     Parameters
     ----------
@@ -289,13 +322,16 @@ def encode_samples(samples: np.ndarray, depth: int, budget: int | None = None) -
         Bits of every sample.
     budget : int, optional
         Stop and return None as soon as the stream passes this many bytes.
+    normals : bool
+        The samples are the x, y, z of a normal map.
     """
     x = np.ascontiguousarray(np.moveaxis(samples, -1, 0), np.int64)
+    unit = normals and samples.shape[2] == 3 and _unit_pays(samples, depth)
     best = None
     for blend in (False, True):
         coder = Coder(N_CONTEXTS)
-        code_flags(coder, np.array([int(blend)]), np.array([_MODE]))
-        if _run(coder, x, depth, blend, budget) == 0:
+        code_flags(coder, np.array([int(blend), int(unit)]), np.array([_MODE, _MODE + 1]))
+        if _run(coder, x, depth, blend, unit, budget) == 0:
             data = coder.finish()
             if (budget is None or len(data) <= budget) and (best is None or len(data) < len(best)):
                 best = data
@@ -309,8 +345,8 @@ def decode_samples(data: bytes, height: int, width: int, channels: int, depth: i
     :class:`bandelets.entropy.CorruptStream` when it holds none."""
     coder = Coder(N_CONTEXTS, data)
     x = np.zeros((channels, height, width), np.int64)
-    blend = bool(code_flags(coder, np.zeros(1, np.int64), np.array([_MODE]))[0])
-    if _run(coder, x, depth, blend, None) != 0:
+    blend, unit = (bool(f) for f in code_flags(coder, np.zeros(2, np.int64), np.array([_MODE, _MODE + 1])))
+    if _run(coder, x, depth, blend, unit and channels == 3, None) != 0:
         raise CorruptStream("coded sample stream is corrupt")
     coder.check()
     return np.ascontiguousarray(np.moveaxis(x, 0, -1), np.uint8 if depth == 8 else np.uint16)
@@ -361,7 +397,7 @@ def encode_file(samples: np.ndarray, kind: str, depth: int, budget: int | None =
     room = None if budget is None else budget - HEADER_BYTES
     if room is not None and room < 0:
         return None
-    stream = encode_samples(samples, depth, room)
+    stream = encode_samples(samples, depth, room, normals=kind == "normal-map")
     return None if stream is None else pack(header, (b"", b"", stream))
 
 
