@@ -2,15 +2,20 @@
 source's samples bit for bit, every stored channel (format version 12, transform ``lossless``).
 
 How: the samples are visited row by row, the channels of a row in turn, and each is predicted
-from its already coded neighbours by the median edge detector of LOCO-I (JPEG-LS: the left or
-the upper neighbour at an edge, the plane through left, up and up-left elsewhere), corrected by
-the mean of the residuals met before in its context (JPEG-LS's bias cancellation). The residual
-goes through the project's adaptive binary range coder (:mod:`bandelets.entropy`): a zero flag,
-a sign, an Elias-gamma magnitude with an adaptive prefix and the first bit below it in context.
-The context of a sample is its channel, the activity around it (the gradients of its
-neighbourhood, in octaves) and, for the second channel on, the magnitude of the residual of
-the previous channel at the same pixel (the channels of a normal map err together at its
-creases).
+from its already coded neighbours, either by the median edge detector of LOCO-I (JPEG-LS: the
+left or the upper neighbour at an edge, the plane through left, up and up-left elsewhere) or by
+a blend of six predictors each weighted by the inverse square of its recent error around the
+sample (:func:`_blend`, after JPEG XL's weighted predictor), whichever codes the file smaller
+(:func:`encode_samples`); the z of a normal map is predicted from its x and y where they make
+it (:func:`_unit_z`). The prediction is corrected by the mean of the residuals met before in
+its context (JPEG-LS's bias cancellation). The residual goes through the project's adaptive
+binary range coder (:mod:`bandelets.entropy`): a zero flag, a sign, an Elias-gamma magnitude
+with an adaptive prefix and the first bit below it in context. A decision's fine context is
+the sample's channel, its three signed local gradients (quantized to 7 levels, a context and
+its mirror merged, JPEG-LS style), the signed residual of the previous channel at the same
+pixel (the channels of a normal map err together at its creases) and the residual energy at
+left and up; it is backed by a coarse context (channel, activity in octaves, the previous
+channel's residual magnitude) as :mod:`bandelets.entropy` backs its own.
 
 Why written here: libraries that code losslessly (libjxl, libavif, libpng through imagecodecs)
 write their own containers; a .bdl file has one format, one header and one CRC, read by one
@@ -65,7 +70,7 @@ _MODE = _FINE + _N_FINE * _FINE_SLOTS
 N_CONTEXTS = _MODE + 2
 #: The bias correction's running sums are halved after this many samples of a context.
 _BIAS_WINDOW = 64
-_N_PREDICTORS = 4
+_N_PREDICTORS = 6
 
 
 _kernel = njit(cache=True, nogil=True, _nrt=False)
@@ -89,8 +94,9 @@ def _level(d, shift):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _blend(errors, c, i, j, p0, p1, p2, p3):
-    """The mean of the predictions ``p0`` to ``p3`` (median, plane, left, up), each weighted by
+def _blend(errors, c, i, j, p0, p1, p2, p3, p4, p5):
+    """The mean of the predictions ``p0`` to ``p5`` (median, plane, left, up, the plane through
+    left, up and up-right, the mean of left and up tilted by the slope above), each weighted by
     the inverse square of the error it made at the four neighbours above and to the left."""
     width = errors.shape[3]
     total = np.int64(0)
@@ -107,7 +113,9 @@ def _blend(errors, c, i, j, p0, p1, p2, p3):
                 err += errors[k, c, i - 1, j + 1]
         w = max((np.int64(1) << 40) // (err * err), np.int64(1))
         total += w
-        weighted += w * (p0 if k == 0 else p1 if k == 1 else p2 if k == 2 else p3)
+        weighted += w * (
+            p0 if k == 0 else p1 if k == 1 else p2 if k == 2 else p3 if k == 3 else p4 if k == 4 else p5
+        )
     return (2 * weighted + total) // (2 * total)
 
 
@@ -164,7 +172,9 @@ def _code(
                 if unit and c == 2:
                     predicted = _unit_z(x[0, i, j], x[1, i, j], top)
                 elif blend:
-                    predicted = _blend(errors, c, i, j, med, a + b - nw, a, b)
+                    predicted = _blend(
+                        errors, c, i, j, med, a + b - nw, a, b, a + ne - b, (a + b + 1) // 2 + (ne - nw) // 4
+                    )
 
                 g1, g2, g3 = ne - b, b - nw, nw - a
                 q1, q2, q3 = _level(g1, shift), _level(g2, shift), _level(g3, shift)
@@ -248,6 +258,8 @@ def _code(
                     errors[1, c, i, j] = abs(sample - (a + b - nw))
                     errors[2, c, i, j] = abs(sample - a)
                     errors[3, c, i, j] = abs(sample - b)
+                    errors[4, c, i, j] = abs(sample - (a + ne - b))
+                    errors[5, c, i, j] = abs(sample - ((a + b + 1) // 2 + (ne - nw) // 4))
                 if n == _BIAS_WINDOW:
                     sums[fine] >>= 1
                     n >>= 1
@@ -308,8 +320,9 @@ def encode_samples(
 
     Both predictors are tried (the median edge detector, then the blend, :func:`_blend`) and the
     smaller stream kept: its first decision says which. The median wins on the lava map (a
-    palette of 175 vectors: 1.27 against 1.69 bpp), the blend on smooth 16-bit maps (the bumps
-    map at 256: 20.4 against 22.4 bpp) and the acacia door (18.2 against 18.5). With
+    palette of 175 vectors: 1.27 against 1.69 bpp with a blend of four), the blend on smooth
+    16-bit maps (the bumps map at 256: 20.4 against 22.4 bpp, blend of four) and the acacia door
+    (18.2 against 18.5). With
     ``normals`` (the channels of a normal map, x, y, z), the third channel is predicted as the
     ``z`` of the unit vector of the first two (:func:`_unit_z`) where that is the closer guess
     (:func:`_unit_pays`; the second decision says so): on the acacia door whose z is rebuilt,
