@@ -128,6 +128,9 @@ def test_cli_lossless_png_decodes_to_the_same_samples(tmp_path, capsys):
     assert main(["encode", "--kind", "normal-map", "--bpp", "24", str(source), str(again)]) == 0
     assert "smaller than the 24 bpp asked" in capsys.readouterr().err
     assert again.read_bytes() == coded.read_bytes()
+    # Nothing to draw: a one-line error.
+    assert main(["show", str(coded), str(tmp_path / "show.png")]) == 2
+    assert "lossless file has no quadtrees" in capsys.readouterr().err
 
 
 def test_cli_lossless_of_a_float_source_is_a_one_line_error(tmp_path, capsys):
