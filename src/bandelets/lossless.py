@@ -376,16 +376,24 @@ def samples_of(array, kind: str, depth: int) -> tuple[np.ndarray, int] | None:
     """
     from .files import from_samples, integer_samples, to_samples
 
-    values, depth = integer_samples(np.asarray(array), kind, depth)
-    if kind == "geometry-image" or depth not in (8, 16) or values.dtype.kind not in "f":
-        return None
+    array = np.asarray(array)
+    given = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(array.dtype)
+    if kind == "normal-map" and given is not None and depth in (0, given):
+        values, depth = array, given  # the samples themselves: no float copy of them
+    else:
+        values, depth = integer_samples(array, kind, depth)
+        if depth not in (8, 16) or values.dtype.kind != "f":
+            return None
     values = values[..., None] if values.ndim == 2 else values
     channels = values.shape[2] if values.ndim == 3 else 0
     if (
-        not (1 <= channels <= 4 and (kind == "image" or channels in (2, 3)))
+        kind == "geometry-image"
+        or not (1 <= channels <= 4 and (kind == "image" or channels in (2, 3)))
         or values.shape[0] * values.shape[1] < 2
     ):
         return None
+    if values.dtype.kind == "u":
+        return np.ascontiguousarray(values), depth
     samples = to_samples(values, kind, depth)
     return (samples, depth) if np.array_equal(from_samples(samples, kind, depth), values) else None
 
