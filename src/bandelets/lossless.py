@@ -4,7 +4,7 @@ source's samples bit for bit, every stored channel (format version 12, transform
 How: the samples are visited row by row, the channels of a row in turn, and each is predicted
 from its already coded neighbours, either by the median edge detector of LOCO-I (JPEG-LS: the
 left or the upper neighbour at an edge, the plane through left, up and up-left elsewhere) or by
-a blend of six predictors each weighted by the inverse square of its recent error around the
+a blend of nine predictors each weighted by the inverse square of its recent error around the
 sample (:func:`_blend`, after JPEG XL's weighted predictor), whichever codes the file smaller
 (:func:`encode_samples`); the z of a normal map is predicted from its x and y where they make
 it (:func:`_unit_z`). The prediction is corrected by the mean of the residuals met before in
@@ -70,7 +70,7 @@ _MODE = _FINE + _N_FINE * _FINE_SLOTS
 N_CONTEXTS = _MODE + 2
 #: The bias correction's running sums are halved after this many samples of a context.
 _BIAS_WINDOW = 64
-_N_PREDICTORS = 6
+_N_PREDICTORS = 9
 
 
 _kernel = njit(cache=True, nogil=True, _nrt=False)
@@ -94,10 +94,9 @@ def _level(d, shift):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _blend(errors, c, i, j, p0, p1, p2, p3, p4, p5):
-    """The mean of the predictions ``p0`` to ``p5`` (median, plane, left, up, the plane through
-    left, up and up-right, the mean of left and up tilted by the slope above), each weighted by
-    the inverse square of the error it made at the four neighbours above and to the left."""
+def _blend(errors, guesses, c, i, j):
+    """The mean of the predictions ``guesses`` (:func:`_guesses`), each weighted by the inverse
+    square of the error it made at the four neighbours above and to the left."""
     width = errors.shape[3]
     total = np.int64(0)
     weighted = np.int64(0)
@@ -113,10 +112,29 @@ def _blend(errors, c, i, j, p0, p1, p2, p3, p4, p5):
                 err += errors[k, c, i - 1, j + 1]
         w = max((np.int64(1) << 40) // (err * err), np.int64(1))
         total += w
-        weighted += w * (
-            p0 if k == 0 else p1 if k == 1 else p2 if k == 2 else p3 if k == 3 else p4 if k == 4 else p5
-        )
+        weighted += w * guesses[k]
     return (2 * weighted + total) // (2 * total)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _guesses(guesses, x, c, i, j, med, a, b, nw, ne):
+    """Fill ``guesses`` with the predictions the blend weighs (:func:`_blend`): the median, the
+    plane through left, up and up-left, left, up, the plane through left, up and up-right, the
+    mean of left and up tilted by the slope above, the plane through up, up-right and the one
+    above it, and the lines through up and the one above it, through left and the one left of
+    it. Each added one paid on the smooth maps (BENCHMARKS, "Lossless files")."""
+    guesses[0] = med
+    guesses[1] = a + b - nw
+    guesses[2] = a
+    guesses[3] = b
+    guesses[4] = a + ne - b
+    guesses[5] = (a + b + 1) // 2 + (ne - nw) // 4
+    nne = x[c, i - 2, j + 1] if i > 1 and j + 1 < x.shape[2] else ne
+    nn = x[c, i - 2, j] if i > 1 else b
+    ww = x[c, i, j - 2] if j > 1 else a
+    guesses[6] = b + ne - nne
+    guesses[7] = 2 * b - nn
+    guesses[8] = 2 * a - ww
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -133,7 +151,23 @@ def _unit_z(red, green, top):
 
 @_kernel
 def _code(
-    st, buf, probs, counts, x, residuals, errors, sums, uses, top, shift, blend, unit, rows, budget, decoding
+    st,
+    buf,
+    probs,
+    counts,
+    x,
+    residuals,
+    errors,
+    guesses,
+    sums,
+    uses,
+    top,
+    shift,
+    blend,
+    unit,
+    rows,
+    budget,
+    decoding,
 ):
     """Code (``decoding`` False) or decode the rows ``rows[0]`` to ``rows[1] - 1`` of the samples
     ``x`` (C, H, W), int64 in ``[0, top]``; gradients are quantized after a right ``shift``.
@@ -172,9 +206,8 @@ def _code(
                 if unit and c == 2:
                     predicted = _unit_z(x[0, i, j], x[1, i, j], top)
                 elif blend:
-                    predicted = _blend(
-                        errors, c, i, j, med, a + b - nw, a, b, a + ne - b, (a + b + 1) // 2 + (ne - nw) // 4
-                    )
+                    _guesses(guesses, x, c, i, j, med, a, b, nw, ne)
+                    predicted = _blend(errors, guesses, c, i, j)
 
                 g1, g2, g3 = ne - b, b - nw, nw - a
                 q1, q2, q3 = _level(g1, shift), _level(g2, shift), _level(g3, shift)
@@ -254,12 +287,10 @@ def _code(
                 residuals[c, i, j] = flip * value
                 if blend:
                     sample = x[c, i, j]
-                    errors[0, c, i, j] = abs(sample - med)
-                    errors[1, c, i, j] = abs(sample - (a + b - nw))
-                    errors[2, c, i, j] = abs(sample - a)
-                    errors[3, c, i, j] = abs(sample - b)
-                    errors[4, c, i, j] = abs(sample - (a + ne - b))
-                    errors[5, c, i, j] = abs(sample - ((a + b + 1) // 2 + (ne - nw) // 4))
+                    if unit and c == 2:  # the blend's guesses were not made
+                        _guesses(guesses, x, c, i, j, med, a, b, nw, ne)
+                    for k in range(_N_PREDICTORS):
+                        errors[k, c, i, j] = abs(sample - guesses[k])
                 if n == _BIAS_WINDOW:
                     sums[fine] >>= 1
                     n >>= 1
@@ -286,7 +317,13 @@ def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, unit: bool, budge
     """Code or decode the samples ``x`` (C, H, W) in chunks of rows, the encoder's buffer grown
     before each to hold its worst case; the status of :func:`_code`."""
     errors = np.zeros((_N_PREDICTORS, *x.shape) if blend else (_N_PREDICTORS, 0, 0, 0), np.int64)
-    scratch = np.zeros(x.shape, np.int64), errors, np.zeros(_N_FINE, np.int64), np.zeros(_N_FINE, np.int64)
+    scratch = (
+        np.zeros(x.shape, np.int64),
+        errors,
+        np.zeros(_N_PREDICTORS, np.int64),
+        np.zeros(_N_FINE, np.int64),
+        np.zeros(_N_FINE, np.int64),
+    )
     row_bytes = x.shape[0] * x.shape[2] * _worst_bytes(depth)
     chunk = max(1, 2**20 // row_bytes)
     limit = np.iinfo(np.int64).max if budget is None else budget
