@@ -58,8 +58,9 @@ _ZERO, _SIGN, _PREFIX_AT, _FIRST_BIT = 0, 1, 2, 2 + _PREFIX
 _GROUP = _FIRST_BIT + _PREFIX
 _N_COARSE = 4 * _N_ACTIVITY * _N_CROSS
 # The fine contexts: channel x three signed gradients quantized to -3..3 x the previous channel's
-# residual clipped to -2..2 (or none), one per pair of contexts of opposite signs; each refines
-# its coarse one in the zero flag, the sign and the first three decisions of the prefix.
+# residual clipped to -2..2 (or none) x the residual energy at left and up (0, 1-2, 3-6, 7+), one
+# per pair of contexts of opposite signs; each refines its coarse one in the zero flag, the sign
+# and the first three decisions of the prefix.
 _N_FINE = 4 * 7**3 * 6 * 4
 _FINE_SLOTS = 5
 _FINE = _N_COARSE * _GROUP
@@ -70,6 +71,7 @@ _MODE = _FINE + _N_FINE * _FINE_SLOTS
 N_CONTEXTS = _MODE + 2
 #: The bias correction's running sums are halved after this many samples of a context.
 _BIAS_WINDOW = 64
+#: Predictions the blend weighs (:func:`_guesses`).
 _N_PREDICTORS = 9
 
 
