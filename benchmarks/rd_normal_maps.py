@@ -26,6 +26,19 @@ given. The tables (PSNR per point, BD-PSNR of the first codec of ``--codecs``, `
 default, over every other codec, positive: the first better) are printed and stored in
 ``benchmarks/rd-normal-maps-real.md`` (with ``--samples``,
 ``benchmarks/rd-normal-maps-samples-SIZE.md``; ``--results PATH`` elsewhere).
+
+Lossless points. The real maps are 8-bit samples: under a rate target that its lossless file
+fits, ``bandelets encode`` writes that file (:mod:`bandelets.lossless`), of infinite PSNR, at
+its own rate, below the target. The tables print ``lossless (rate)`` for it; a BD-PSNR is
+computed on the finite points of both curves only, over the rates both cover (a curve that ends
+in a lossless file is cut where it turns lossless: the BD says nothing about the rates above,
+where that file beats every finite point). The tables say up to which rate each BD runs. A
+second table keeps each curve's first lossless point at the other curve's best finite PSNR: a
+lower bound of what the exact file is worth against it, over the whole common range. Then
+the lossless rate of every map by each codec at its strongest lossless setting
+(:func:`bandelets.anchors.encode_lossless`: ``bandelets encode --lossless``, ``cjxl -d 0 -e 9``,
+``avifenc --lossless -s 2``, OpenJPEG reversible, PNG at zlib level 9), each file decoded and
+checked to give the samples back.
 """
 
 from __future__ import annotations
@@ -39,6 +52,7 @@ import numpy as np
 
 import bandelets
 from bandelets import anchors
+from bandelets.bitstream import unpack
 from bandelets.files import from_samples, write_atomic
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
@@ -55,6 +69,8 @@ OURS = {
 }
 CODECS = (*OURS, "jpeg2000", "avif", "jpegxl")
 SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map, "bevel": bevel_normal_map}
+#: Codecs of the lossless table.
+LOSSLESS = ("bandelets", "jpegxl", "avif", "jpeg2000", "png")
 
 
 def load(path: Path) -> np.ndarray:
@@ -90,16 +106,65 @@ def point(vectors: np.ndarray, depth: int, codec: str, rate: float, folder: Path
         decoded = bandelets.decode(written)
     else:
         decoded = anchors.decode(written, codec, vectors, "normal-map", depth)
+    quality = psnr(unit_vectors(vectors), decoded, "normal-map")
+    # A lossless file decodes to the very values given (renormalising them twice, the reference
+    # above, differs in the last bits): its PSNR is infinite.
+    if codec in OURS and unpack(written)[0].transform == "lossless":
+        if not np.array_equal(decoded, vectors):
+            raise RuntimeError("a lossless .bdl file does not decode to its source")
+        quality = float("inf")
     return {
         "codec": codec,
         "bpp": bits_per_pixel(len(written), vectors.shape),
-        "psnr": psnr(unit_vectors(vectors), decoded, "normal-map"),
+        "psnr": quality,
         "encode_s": encode_s,
     }
 
 
 def _curve(rows: list[dict]) -> tuple[list[float], list[float]]:
-    return [r["bpp"] for r in rows], [r["psnr"] for r in rows]
+    """The finite points of a curve (a lossless file's PSNR is infinite: see the module notes)."""
+    finite = [r for r in rows if np.isfinite(r["psnr"])]
+    return [r["bpp"] for r in finite], [r["psnr"] for r in finite]
+
+
+def _bd(ours: tuple, theirs: tuple) -> str:
+    """BD-PSNR of ``ours`` over ``theirs`` with the top of the common rate range."""
+    top = min(max(ours[0]), max(theirs[0]))
+    return f"{bd_psnr(*ours, *theirs):+.2f} (to {top:.2f})"
+
+
+def _capped(ours: list[dict], theirs: list[dict]) -> str:
+    """BD-PSNR of ``ours`` over ``theirs``, the first lossless point of either curve kept at the
+    best finite PSNR of the other (a lower bound of what an exact file is worth against it);
+    "=" when neither curve has one."""
+    curves = [list(ours), list(theirs)]
+    for k in (0, 1):
+        exact = [r for r in curves[k] if np.isinf(r["psnr"])]
+        if exact:
+            best = max(r["psnr"] for r in curves[1 - k] if np.isfinite(r["psnr"]))
+            curves[k] = [r for r in curves[k] if np.isfinite(r["psnr"])] + [exact[0] | {"psnr": best}]
+    if curves == [ours, theirs]:
+        return "="
+    return f"{bd_psnr(*_curve(curves[0]), *_curve(curves[1])):+.2f}"
+
+
+def _cell(row: dict) -> str:
+    quality = "lossless" if np.isinf(row["psnr"]) else f"{row['psnr']:.2f}"
+    return f"{quality} ({row['bpp']:.3f})"
+
+
+def lossless_rates(samples: np.ndarray) -> dict[str, float]:
+    """bpp of the lossless file of 8-bit samples (H, W, 3) by bandelets and each anchor, each
+    decoded and checked."""
+    pixels = samples.shape[0] * samples.shape[1]
+    data = bandelets.encode(samples, kind="normal-map", lossless=True)
+    if not np.array_equal(bandelets.decode(data), samples / 255.0 * 2.0 - 1.0):
+        raise RuntimeError("a lossless .bdl file does not decode to its source")
+    rates = {"bandelets": 8 * len(data) / pixels}
+    for codec in ("jpegxl", "avif", "jpeg2000"):
+        rates[codec] = 8 * len(anchors.encode_lossless(samples, codec)) / pixels
+    rates["png"] = 8 * len(imagecodecs.png_encode(samples, level=9)) / pixels
+    return rates
 
 
 def main() -> None:
@@ -129,9 +194,14 @@ def main() -> None:
             return
         maps = {p.stem: (load(p).astype(np.float64) / 255.0 * 2.0 - 1.0, 8) for p in paths}
         results = HERE / "rd-normal-maps-real.md"
+        exact = ["| map | " + " | ".join(LOSSLESS) + " |", "|" + " --- |" * (len(LOSSLESS) + 1)]
+        for p in paths:
+            rates = lossless_rates(load(p))
+            exact.append(f"| {p.stem} | " + " | ".join(f"{rates[c]:.3f}" for c in LOSSLESS) + " |")
+            print(exact[-1], flush=True)
     lines = ["| map | codec | " + " | ".join(f"{r:g} bpp" for r in RATES) + " |"]
     lines.append("| --- | --- |" + " --- |" * len(RATES))
-    gains = []
+    gains, capped = [], []
     for name, (vectors, depth) in maps.items():
         folder = args.out / name
         folder.mkdir(parents=True, exist_ok=True)
@@ -144,24 +214,30 @@ def main() -> None:
                 except ValueError as err:  # a target below the codec's smallest file
                     print(f"{name}: {codec} at {rate:g} bpp skipped: {err}")
             curves[codec] = rows
-            cells = " | ".join(f"{r['psnr']:.2f} ({r['bpp']:.3f})" for r in rows)
+            cells = " | ".join(_cell(r) for r in rows)
             lines.append(f"| {name} | {codec} | {cells} |")
             print(lines[-1], flush=True)
         ours = _curve(curves[reference])
-        cells = [
-            f"{bd_psnr(*ours, *_curve(rows)):+.2f}" for codec, rows in curves.items() if codec != reference
-        ]
+        cells = [_bd(ours, _curve(rows)) for codec, rows in curves.items() if codec != reference]
         gains.append(f"| {name} | " + " | ".join(cells) + " |")
+        cells = [_capped(curves[reference], rows) for codec, rows in curves.items() if codec != reference]
+        capped.append(f"| {name} | " + " | ".join(cells) + " |")
         print(gains[-1], flush=True)
     header = "| map | " + " | ".join(c for c in codecs if c != reference) + " |"
     summary = [header, "|" + " --- |" * len(codecs), *gains]
     text = (
-        "PSNR in dB (real bpp in brackets):\n\n"
+        "PSNR in dB (real bpp in brackets; lossless: the file is exact):\n\n"
         + "\n".join(lines)
-        + f"\n\nBD-PSNR of `{reference}` over each codec, dB, 0.25 to 2 bpp:\n\n"
-        + "\n".join(summary)
-        + "\n"
+        + f"\n\nBD-PSNR of `{reference}` over each codec, dB, from 0.25 bpp to the top of the finite "
+        "points both curves have (in brackets, bpp):\n\n" + "\n".join(summary) + "\n"
     )
+    text += (
+        "\nThe same, each curve's first lossless point kept at the other curve's best finite PSNR "
+        "(a lower bound of what the exact file is worth against it; '=': no lossless point, as "
+        "above), over the whole common rate range:\n\n" + "\n".join([header, summary[1], *capped]) + "\n"
+    )
+    if not args.samples:
+        text += "\nLossless files, bpp (each decoded and checked):\n\n" + "\n".join(exact) + "\n"
     command = "python benchmarks/rd_normal_maps.py"
     if args.samples:
         command += f" --samples {' '.join(args.samples)} --size {args.size}"

@@ -260,7 +260,8 @@ def test_truncated_header(small_file):
         (12, "<I", 0, "exceeds"),
         (12, "<I", 16384, "samples"),  # sides within the limit, too many samples (see below)
         (5, "<B", 9, "kind"),
-        (6, "<B", 2, "transform"),
+        (6, "<B", 3, "transform"),
+        (6, "<B", 2, "lossless file"),
         (7, "<B", 200, "wavelet"),
         (8, "<B", 0, "levels"),
         (8, "<B", 7, "levels"),

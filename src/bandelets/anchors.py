@@ -15,6 +15,9 @@ JPEG2000 and JPEG XL, 12 for AVIF). The value range is given to the decoder for 
 * ``jpegxl``: libjxl, effort 9. Quality knob: the butteraugli distance (lower is better).
 
 :func:`encode` hits a target size by bisection on the knob: the largest file not above it.
+:func:`encode_lossless` codes integer samples exactly, at each codec's strongest setting:
+OpenJPEG's reversible 5/3 wavelet, libavif level 100 (lossless: 4:4:4, identity matrix), libjxl
+lossless at effort 9 (``cjxl -d 0 -e 9``).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ __all__ = [
     "available",
     "decode",
     "encode",
+    "encode_lossless",
     "sample_depth",
     "value_range",
     "versions",
@@ -116,6 +120,31 @@ def _encode_once(codec: str, samples: np.ndarray, bits: int, quality: float, vec
             matrix=imagecodecs.AVIF.MATRIX_COEFFICIENTS.IDENTITY if colour and vectors else None,
         )
     return imagecodecs.jpegxl_encode(samples, distance=float(np.exp(-quality)), effort=_JXL_EFFORT)
+
+
+def encode_lossless(samples: np.ndarray, codec: str) -> bytes:
+    """``samples`` (``uint8`` / ``uint16``, (H, W) or (H, W, C)) coded losslessly by ``codec``
+    (see the module notes); ``RuntimeError`` if the file does not decode to them exactly."""
+    import imagecodecs
+
+    _library(codec)
+    samples = np.ascontiguousarray(samples)
+    if codec == "jpeg2000":
+        data = imagecodecs.jpeg2k_encode(samples, level=0, codecformat="J2K", reversible=True, mct=False)
+    elif codec == "avif":
+        colour = samples.ndim == 3 and samples.shape[2] >= 3
+        data = imagecodecs.avif_encode(
+            samples,
+            level=100,
+            speed=_AVIF_SPEED,
+            matrix=imagecodecs.AVIF.MATRIX_COEFFICIENTS.IDENTITY if colour else None,
+        )
+    else:
+        data = imagecodecs.jpegxl_encode(samples, lossless=True, effort=_JXL_EFFORT)
+    decoders = {"jpeg2000": imagecodecs.jpeg2k_decode, "avif": imagecodecs.avif_decode}
+    if not np.array_equal(decoders.get(codec, imagecodecs.jpegxl_decode)(data), samples):
+        raise RuntimeError(f"{codec}'s lossless file does not decode to its samples")
+    return data
 
 
 #: Range of each codec's quality knob (larger is better) and whether it is an integer:

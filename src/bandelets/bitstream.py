@@ -6,7 +6,7 @@ Layout (little endian)::
     0       4     magic b"BDL\\x1a"
     4       1     format version (FORMAT_VERSION)
     5       1     kind: KIND_CODES (0 image, 1 normal-map, 2 geometry-image)
-    6       1     transform: TRANSFORM_CODES (0 bandelet, 1 wavelet)
+    6       1     transform: TRANSFORM_CODES (0 bandelet, 1 wavelet, 2 lossless)
     7       1     wavelet: WAVELET_CODES
     8       1     wavelet levels
     9       1     channels coded (1 to 4; a normal map: 3, or 2 when z is rebuilt, see below)
@@ -57,7 +57,12 @@ reconstructs a bin at its middle (:data:`bandelets.quantize.RECONSTRUCTION`, 0.4
 before) and codes the lifting blocks' moved flags in the context of their neighbours
 (:func:`bandelets.entropy.code_flag_map`). Version 12 lets the loop filter take its taps on the
 other channels over the 5 x 5 square, not only the 3 x 3, and its own taps over a square, not
-only a diamond. This build reads version 12 only.
+only a diamond, and added lossless files (transform code 2,
+:mod:`bandelets.lossless`): the integer samples of every channel of the source (depth 8 or 16),
+predicted and coded in the coefficient stream; the splits and directions streams are empty, the
+file has no restoration, lifting or loop filter, its threshold is 1 and its wavelet levels 1 (no
+meaning), a normal map's channels are the stored ones (3, or 2 of layout ``xy``) and decode to
+the source's values, not renormalised. This build reads version 12 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
@@ -119,6 +124,7 @@ __all__ = [
     "LAYOUT_CODES",
     "KINDS",
     "TRANSFORMS",
+    "LOSSLESS",
     "WAVELETS",
     "TRANSFORMS_1D",
     "EXTENSIONS",
@@ -167,7 +173,9 @@ TILED_CODE = 255
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
 KIND_CODES = {"image": 0, "normal-map": 1, "geometry-image": 2}
-TRANSFORM_CODES = {"bandelet": 0, "wavelet": 1}
+TRANSFORM_CODES = {"bandelet": 0, "wavelet": 1, "lossless": 2}
+#: The transform of a lossless file (:mod:`bandelets.lossless`): not a choice of the lossy coder.
+LOSSLESS = "lossless"
 #: Wavelets (:mod:`bandelets.wavelets`).
 WAVELET_CODES = {"cdf97": 0, "haar": 1, "db2": 2, "db4": 3, "db6": 4, "db8": 5}
 #: 1D transforms along the directions (:mod:`bandelets.bandeletize`).
@@ -176,9 +184,11 @@ TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
 EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
 #: Layouts of a normal map's source (see above): ``xy`` and ``rg`` are coded as two channels.
 LAYOUT_CODES = {"xyz": 0, "xy": 1, "rg": 2}
-KINDS, TRANSFORMS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
-    tuple, (KIND_CODES, TRANSFORM_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES, LAYOUT_CODES)
+KINDS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
+    tuple, (KIND_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES, LAYOUT_CODES)
 )
+#: The transforms of the lossy coder (``encode(transform=...)``).
+TRANSFORMS = tuple(t for t in TRANSFORM_CODES if t != LOSSLESS)
 # The same names as types, for signatures (tests/test_bitstream.py checks they agree).
 Kind = Literal["image", "normal-map", "geometry-image"]
 Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8"]
@@ -549,6 +559,17 @@ def unpack(
         (
             lifting <= min(levels, MAX_LIFTING),
             f"{lifting} directional levels (at most {MAX_LIFTING}, {levels} levels)",
+        ),
+        (
+            transform != LOSSLESS
+            or (
+                depth in (8, 16)
+                and kind != "geometry-image"
+                and (levels, threshold, restoration, filtered, lifting) == (1, 1.0, 0, 0, 0)
+                and lengths[0] == lengths[1] == 0
+            ),
+            f"a lossless file of depth {depth} with lossy fields (levels, threshold, restoration, "
+            "loop filter, lifting or geometry streams)",
         ),
     ]
     for ok, message in checks:

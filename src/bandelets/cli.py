@@ -77,6 +77,17 @@ def _build_parser() -> argparse.ArgumentParser:
         help="normal maps: the largest 99th percentile of the angle between input and decoded normals, "
         "in degrees (the tail, where creases show artefacts; the mean follows --psnr)",
     )
+    target.add_argument(
+        "--lossless",
+        action="store_true",
+        help="code the input's 8 or 16-bit samples exactly, every channel (PNG, TIFF; the decoded file "
+        "has the same samples). By default a --bpp target that the lossless file fits gets it",
+    )
+    p.add_argument(
+        "--no-lossless",
+        action="store_true",
+        help="never write the lossless file in place of a --bpp target (a lossy file of the rate asked)",
+    )
     p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
     p.add_argument(
         "--kind",
@@ -346,6 +357,8 @@ def _check_targets(args) -> None:
 
 def _encode(args) -> None:
     _check_targets(args)
+    if args.lossless and args.no_lossless:
+        raise _UsageError("--lossless and --no-lossless contradict each other")
     _check_input(args.input)
     _check_output(args.input, args.output, args.force)
     if Path(args.output).suffix.lower() in IMAGE_SUFFIXES:
@@ -360,7 +373,7 @@ def _encode(args) -> None:
     from .options import EncodeOptions
 
     target = {"bpp": args.bpp, "threshold": args.threshold, "psnr": args.psnr, "max_angle": args.max_angle}
-    if all(v is None for v in target.values()):
+    if all(v is None for v in target.values()) and not args.lossless:
         target["bpp"] = 1.0
     options = EncodeOptions(
         transform=args.transform,
@@ -375,6 +388,7 @@ def _encode(args) -> None:
         xy=args.xy,
         lifting=args.lifting,
         tile=args.tile,
+        lossless=True if args.lossless else False if args.no_lossless else None,
     )
     encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
     write_atomic(args.output, encoded.data)
@@ -383,7 +397,9 @@ def _encode(args) -> None:
 
         elapsed = time.perf_counter() - start
         print(
-            encode_summary(args.input, args.output, array, depth, args.kind, args.xy, encoded, elapsed),
+            encode_summary(
+                args.input, args.output, array, depth, args.kind, args.xy, encoded, elapsed, target["bpp"]
+            ),
             file=sys.stderr,
         )
 

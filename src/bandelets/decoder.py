@@ -12,9 +12,9 @@ from itertools import islice
 
 import numpy as np
 
-from . import directional, entropy, frames, loopfilter, metrics, restoration, tiling
+from . import directional, entropy, frames, loopfilter, lossless, metrics, restoration, tiling
 from .bandeletize import bandeletize, debandeletize
-from .bitstream import MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
+from .bitstream import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
 from .coding import code_image, code_lifting, new_coders
 from .memory import check_memory, check_work
 from .quantize import dequantize
@@ -69,7 +69,8 @@ def decode(
     Returns
     -------
     ndarray, float64, shape (H, W) for one channel or (H, W, C); a normal map's vectors are
-    renormalised to unit length.
+    renormalised to unit length, but for a lossless file (:mod:`bandelets.lossless`): the
+    source's values exactly, every channel it stored.
 
     Raises
     ------
@@ -116,6 +117,12 @@ def decode_parsed(
     max_work: int = MAX_WORK,
 ) -> np.ndarray:
     """Decode a file already split by :func:`bandelets.bitstream.unpack` (options of :func:`decode`)."""
+    if header.transform == LOSSLESS:
+        check_memory(header, max_memory)
+        try:
+            return lossless.decode_file(header, streams[2])
+        except entropy.CorruptStream as err:
+            raise FormatError(f"corrupt .bdl file: {err}") from None
     if not restore:
         header = replace(header, restoration=0, loop_filter=None)
     check_memory(header, max_memory)

@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from . import directional, frames, loopfilter, metrics, normalmaps, ratecontrol, tiling
+from . import directional, frames, loopfilter, lossless, metrics, normalmaps, ratecontrol, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
@@ -36,10 +36,10 @@ from .bitstream import (
 )
 from .coding import code_image, code_lifting, new_coders
 from .decoder import decode, decoded_bins, decoded_image, restorations
-from .files import as_read
+from .files import as_read, to_samples
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
-from .memory import check_memory, restoration_work
+from .memory import check_encodable, check_memory, restoration_work
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_targets, geometry_options
 from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
@@ -200,6 +200,7 @@ def encode(
     xy: bool = False,
     max_work: int = MAX_WORK,
     tile: int = 0,
+    lossless: bool | None = None,
 ) -> bytes:
     """Compress an image, normal map or geometry image into a .bdl file.
 
@@ -213,8 +214,9 @@ def encode(
         source); otherwise as three channels, in local frames around the coarser
         decoded normals (:mod:`bandelets.frames`, normal weight
         :data:`bandelets.bitstream.NORMAL_MAP_WEIGHT`).
-    bpp, threshold, psnr, max_angle : float, exactly one
-        Target rate in bits per pixel (the file lands within 3 % below it), quantization
+    bpp, threshold, psnr, max_angle : float, exactly one (none with ``lossless=True``)
+        Target rate in bits per pixel (the file lands within 3 % below it, or far below it when
+        it is lossless: see ``lossless``), quantization
         threshold ``T``, target PSNR in dB (:func:`bandelets.metrics.psnr` for ``kind``), or
         for a normal map the largest 99th percentile of the angular error in degrees
         (:func:`bandelets.metrics.angular_error`: the mean follows the PSNR, the tail is what
@@ -277,6 +279,13 @@ def encode(
         :data:`~bandelets.tiling.MIN_TILE`. The default, 0, codes in one piece what fits
         ``max_memory`` and in tiles of :data:`~bandelets.tiling.TILE` what does not (tile borders
         can show at low rates: :func:`bandelets.memory.tile_side`).
+    lossless : bool, optional
+        True: code the integer samples of the source exactly (:mod:`bandelets.lossless`; no
+        target): ``uint8`` / ``uint16`` samples of a normal map, or values read from 8 or
+        16-bit samples with their ``depth`` (``ValueError`` for anything else); the file decodes
+        to the same values, every channel given (``xy`` aside). None (the default): under a
+        ``bpp`` target, the lossless file when the source has such samples and that file fits
+        the target (smaller than asked, and exact). False: never.
 
     Returns
     -------
@@ -315,6 +324,7 @@ def encode(
         xy=xy,
         max_work=max_work,
         tile=tile,
+        lossless=lossless,
     )
     return encode_with_stats(
         array, options, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle
@@ -341,7 +351,21 @@ def encode_with_stats(
     at ``threshold``: the file is then only restored and measured, not coded again (a tiled
     encode's last pass, :mod:`bandelets.tiling`)."""
     targets = dict(bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle)
+    if options.lossless:
+        if any(v is not None for v in targets.values()):
+            raise ValueError("a lossless file has no target: give none of bpp, threshold, psnr or max_angle")
+        return _lossless(array, options, measured)
     check_targets(options.kind, **targets)
+    if options.lossless is None and bpp is not None:
+        # A user asking for a rate is given the exact file when it fits: an image of integer
+        # samples whose lossless file is no larger than the target is written losslessly (a
+        # 2 bpp target met exactly in 1.4 bpp on the lava map: no lossy file of 2 bpp can be
+        # better). The lossless coder stops as soon as it passes the target, so trying it costs
+        # the share of the image it codes before then (BENCHMARKS, "Lossless files").
+        fitted = _lossless(array, options, measured, bpp)
+        if fitted is not None:
+            return fitted
+        options = replace(options, lossless=False)
     if options.wavelet == AUTO_WAVELET:
         return _best_of_wavelets(array, options, measured=measured, **targets)
     if tiling.tiled(array, options):
@@ -517,6 +541,49 @@ def encode_with_stats(
         )
 
 
+def _lossless(array, options: EncodeOptions, measured: bool, bpp: float | None = None) -> Encoded | None:
+    """The lossless file of ``array`` (:mod:`bandelets.lossless`): with ``bpp``, None when
+    ``array`` has no integer samples or the file would be larger than ``bpp``; without,
+    ``ValueError`` when ``array`` has no integer samples. ``measured``: the file is decoded and
+    compared with the samples (PSNR infinite)."""
+    shape = np.shape(array)
+    if bpp is not None and len(shape) in (2, 3):
+        try:  # the lossless coder works in one piece: an image that needs tiles is coded lossy
+            check_encodable(*shape[:2], shape[2] if len(shape) == 3 else 1, options.max_memory, tile=0)
+        except ValueError:
+            return None
+    found = lossless.samples_of(array, options.kind, options.depth)
+    if found is None:
+        if bpp is not None:
+            return None
+        array = np.asarray(array)
+        check_image(
+            normalmaps.prepare(array, options.depth, False)[0] if options.kind == "normal-map" else array,
+            options.kind,
+            options.max_memory,
+        )
+        raise ValueError(
+            "lossless coding needs integer samples: an 8 or 16-bit PNG or TIFF, uint8 / uint16 samples of "
+            "a normal map, or values read from such samples with their depth"
+        )
+    samples, depth = found
+    height, width, channels = samples.shape
+    check_encodable(height, width, channels, options.max_memory, tile=0)
+    budget = None if bpp is None else int(bpp * height * width / 8)
+    data = lossless.encode_file(samples, options.kind, depth, budget)
+    if data is None:
+        return None
+    header = unpack(data, max_side=2**32, max_samples=2**64)[0]
+    decoded = None
+    if measured:
+        decoded = decode(data, max_memory=options.max_memory, max_side=2**32, max_samples=2**64)
+        if not np.array_equal(
+            to_samples(decoded, options.kind, depth), samples[..., 0] if channels == 1 else samples
+        ):
+            raise RuntimeError("the lossless file does not decode to its source: please report this bug")
+    return Encoded(data, 1.0, 0.0, psnr=float("inf"), decoded=decoded, header=header)
+
+
 def _read_back(encoded: Encoded) -> Encoded:
     """``encoded`` with the header, quadtrees, bins and directions its file holds, as the decoder
     reads them, and without its loop filter (fitted to the unrestored image: chosen again)."""
@@ -660,7 +727,7 @@ def _best_of_wavelets(array, options: EncodeOptions, *, bpp, measured, **targets
         # A rate target compares the PSNR of each.
         encode_with_stats(
             array,
-            replace(options, wavelet=w, lifting=options.lifting if w == "cdf97" else False),
+            replace(options, wavelet=w, lifting=options.lifting if w == "cdf97" else False, lossless=False),
             bpp=bpp,
             measured=measured or bpp is not None,
             **targets,

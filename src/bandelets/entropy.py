@@ -45,6 +45,12 @@ __all__ = [
     "code_positive",
     "code_symbols",
     "code_coefficients",
+    "code_bit",
+    "code_backed",
+    "code_raw_bit",
+    "registers",
+    "keep_registers",
+    "POSITION",
 ]
 
 
@@ -287,6 +293,14 @@ _NO_HINTS = np.zeros(0, np.int64)
 def _code_raw_bit(r, buf, bit, decoding):
     """Code one equiprobable bit (no context); returns it and the registers."""
     return _code_at(r, buf, _PROB_ONE // 2, bit, decoding)
+
+
+# Building blocks of the compiled context models of other modules (bandelets.lossless): a kernel
+# takes the registers of a coder's state, codes its decisions, and stores the registers back.
+registers, keep_registers = _registers, _keep
+code_bit, code_backed, code_raw_bit = _code_bit, _code_backed, _code_raw_bit
+#: Index, in the registers, of the count of bytes written so far.
+POSITION = _POS
 
 
 @_kernel

@@ -86,8 +86,13 @@ class EncodeOptions:
     max_work: int = MAX_WORK
     mesh_vertices: int = 0
     tile: int = 0
+    lossless: bool | None = None
 
     def __post_init__(self) -> None:
+        if self.lossless not in (None, True, False):
+            raise ValueError(f"lossless must be None, True or False, got {self.lossless!r}")
+        if self.lossless and self.kind == "geometry-image":
+            raise ValueError("a geometry image has float positions: it has no lossless coding")
         if not (isinstance(self.tile, (int, np.integer)) and (self.tile == 0 or self.tile >= MIN_TILE)):
             raise ValueError(
                 f"tile must be 0 (automatic) or an integer of at least {MIN_TILE}, got {self.tile!r}"

@@ -6,6 +6,12 @@ for the input's kind) is measured on what was decoded. The curves are compared b
 BD-PSNR against bandelets, and ``--decay`` fits the slope of ``log MSE`` against
 ``log bits``, the exponent of the paper's decay theorems.
 
+An input of 8 or 16-bit samples whose lossless file fits a target is coded losslessly
+(:mod:`bandelets.lossless`): that point has an infinite PSNR, at its own rate, below the target,
+and the tables print ``lossless`` for it. The BD-PSNR, the ranges and the slopes take the finite
+points of each curve only, over the rates both curves cover: a curve that turns lossless is
+cut there.
+
 A mesh input (OBJ, PLY, OFF, STL, ...) is compared at equal file size too, with the rate in
 bits per vertex of the original mesh (``bpv = 8 * bytes / V``) and the Hausdorff PSNR
 (:func:`bandelets.surfaces.metrics.hausdorff_psnr`) of each decoded mesh against the
@@ -397,7 +403,7 @@ def format_points(rows: list[dict]) -> str:
                 f"{r['target']:g}",
                 str(r["bytes"]),
                 f"{r[rate_key(rows)]:.4f}",
-                f"{r['psnr']:.2f}",
+                "lossless" if np.isinf(r["psnr"]) else f"{r['psnr']:.2f}",
                 f"{r['encode_s']:.2f}",
                 f"{r['decode_s']:.2f}",
             ]

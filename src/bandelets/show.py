@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .bandeletize import debandeletize
-from .bitstream import Header, unpack
+from .bitstream import LOSSLESS, Header, unpack
 from .coding import code_image, new_coders
 from .geometry import directions
 from .plots import save
@@ -76,11 +76,15 @@ def geometry_figure(data: bytes, path: Path) -> None:
     ------
     FormatError
         The file is not a readable .bdl file.
+    ValueError
+        A lossless file (:mod:`bandelets.lossless`).
     """
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
 
     header, streams = unpack(data)
+    if header.transform == LOSSLESS:
+        raise ValueError("a lossless file has no quadtrees, directions or subbands to show")
     trees, quantized, _ = code_image(new_coders(streams), header)
     magnitudes = wavelet_magnitudes(header, trees, quantized)
     outlines, flows = _segments(header, trees)

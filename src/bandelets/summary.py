@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .bitstream import LOSSLESS
 from .files import as_read
 from .metrics import angular_error, bits_per_pixel
 
@@ -31,17 +32,33 @@ def lengths_note(vectors: np.ndarray) -> str:
 
 
 def encode_summary(
-    source: str, output: str, array: np.ndarray, depth: int, kind: str, xy: bool, encoded, seconds: float
+    source: str,
+    output: str,
+    array: np.ndarray,
+    depth: int,
+    kind: str,
+    xy: bool,
+    encoded,
+    seconds: float,
+    bpp: float | None = None,
 ) -> str:
     """``source (W x H x C, depth) -> output: bytes, bpp, PSNR[, angular error], seconds``.
 
     ``encoded`` is the :class:`bandelets.encoder.Encoded` of ``array`` (measured), whose PSNR is that
-    of the decoded file at the source's ``depth``; the angles are measured there too.
+    of the decoded file at the source's ``depth``; the angles are measured there too. A lossless
+    file says so in place of its PSNR, and that it is smaller than the ``bpp`` asked, if one was.
     """
     n = len(encoded.data)
+    rate = bits_per_pixel(n, array.shape)
+    if encoded.header is not None and encoded.header.transform == LOSSLESS:
+        asked = f" (exact, smaller than the {bpp:g} bpp asked; --no-lossless for a lossy file)" if bpp else ""
+        return (
+            f"{source} ({_samples(array.shape, depth)}) -> {output}: {n} bytes, {rate:.3f} bpp, "
+            f"lossless{asked}, {seconds:.2f} s"
+        )
     line = (
         f"{source} ({_samples(array.shape, depth)}) -> {output}: {n} bytes, "
-        f"{bits_per_pixel(n, array.shape):.3f} bpp, PSNR {encoded.psnr:.2f} dB"
+        f"{rate:.3f} bpp, PSNR {encoded.psnr:.2f} dB"
     )
     note = ""
     if kind == "normal-map":

@@ -62,6 +62,16 @@ def geometry_image_32() -> np.ndarray:
     return np.stack([r * np.sin(theta) * np.cos(phi), r * np.sin(theta) * np.sin(phi), r * np.cos(theta)], -1)
 
 
+def bumps_32_samples() -> np.ndarray:
+    """The bumps map as 8-bit samples (uint8), as a PNG holds it."""
+    return np.round((bumps_32() + 1.0) / 2.0 * 255.0).astype(np.uint8)
+
+
+def gray_16_samples() -> np.ndarray:
+    """The gray image as the values of 16-bit samples (as read from a 16-bit PNG)."""
+    return np.round(np.clip(gray_16(), 0.0, 1.0) * 65535.0) / 65535.0
+
+
 #: file name -> (input maker, encode options)
 GOLDEN = {
     "gray16.bdl": (gray_16, {"threshold": 0.01, "kind": "image", "transform": "bandelet"}),
@@ -86,6 +96,8 @@ GOLDEN = {
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
     "bumps32.bdl": (bumps_32, {"threshold": 0.05, "kind": "normal-map", "transform": "bandelet"}),
+    "bumps32-lossless.bdl": (bumps_32_samples, {"kind": "normal-map", "lossless": True}),
+    "gray16-lossless.bdl": (gray_16_samples, {"kind": "image", "depth": 16, "lossless": True}),
     "geometry32.bdl": (
         geometry_image_32,
         {"threshold": 0.002, "kind": "geometry-image", "transform": "wavelet"},
