@@ -3,10 +3,10 @@
     python benchmarks/rd_defaults.py --save out/rd-defaults-main.json        # on main
     python benchmarks/rd_defaults.py --against out/rd-defaults-main.json     # on a branch
 
-(from the repository root; 2 to 5 minutes on the 2-core machine.) The maps: the generated
-crease (256 and 512) and bumps (256), the shared real maps of ``../shared/data/normal-maps``
-(read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit) and the normal maps of the fandisk
-and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
+(from the repository root; 3 to 8 minutes on the 2-core machine.) The maps: the generated
+crease (256 and 512), bumps (256) and bevel (256 and 512, 8-bit samples), the shared real maps
+of ``../shared/data/normal-maps`` (read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit)
+and the normal maps of the fandisk and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
 ``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats); a map whose
 file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
 ``bandelets.encode(map, bpp=B, kind="normal-map", depth=D)`` and AVIF as
@@ -14,6 +14,11 @@ file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
 from its file (bpp ``8 x bytes / pixels``, PSNR of the decoded vectors renormalised). Prints the
 points and the BD-PSNR of the defaults over AVIF and, with ``--against``, over the defaults of
 the run saved there (``--save`` writes this run's curves as JSON).
+
+A point that is a lossless file (an 8-bit map under a target its lossless file fits) has an
+infinite PSNR; the BD-PSNRs are those of ``benchmarks/rd_normal_maps.py``: on the finite points
+over the common range, and (in brackets, over AVIF) with the lossless point kept at the other
+curve's best finite PSNR, a lower bound.
 """
 
 from __future__ import annotations
@@ -27,21 +32,31 @@ import numpy as np
 
 import bandelets
 from bandelets import anchors
+from bandelets.bitstream import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
-from bandelets.samples import bump_normal_map, crease_normal_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from rd_normal_maps import RATES, load  # noqa: E402
+from rd_normal_maps import RATES, _capped, load, sample  # noqa: E402
 
-MAPS = ("crease@256", "bumps@256", "crease@512", "acacia_door_bottom_n", "lava_flow_n", "fandisk", "bunny")
+MAPS = (
+    "crease@256",
+    "bumps@256",
+    "crease@512",
+    "bevel@256",
+    "bevel@512",
+    "acacia_door_bottom_n",
+    "lava_flow_n",
+    "fandisk",
+    "bunny",
+)
 
 
 def _maps(names, real: Path, meshes: Path):
     """``name -> (unit vectors, depth)`` of the maps ``names`` whose source is present."""
     for name in names:
         if "@" in name:
-            sample, size = name.split("@")
-            yield name, ({"crease": crease_normal_map, "bumps": bump_normal_map}[sample](int(size)), 0)
+            generated, size = name.split("@")
+            yield name, sample(generated, int(size))
         elif name in ("fandisk", "bunny"):
             if not (meshes / f"{name}.off").is_file():
                 print(f"skipping {name}: no {meshes / name}.off")
@@ -62,6 +77,11 @@ def _curve(vectors: np.ndarray, depth: int, codec: str) -> list[tuple[float, flo
         if codec == "bandelets":
             data = bandelets.encode(vectors, bpp=rate, kind="normal-map", depth=depth)
             decoded = bandelets.decode(data)
+            if unpack(data)[0].transform == "lossless":  # checked exact, as rd_normal_maps does
+                if not np.array_equal(decoded, vectors):
+                    raise RuntimeError("a lossless .bdl file does not decode to its source")
+                points.append((bits_per_pixel(len(data), vectors.shape), float("inf")))
+                continue
         else:
             data = anchors.encode(vectors, rate, codec, "normal-map", depth)
             decoded = anchors.decode(data, codec, vectors, "normal-map", depth)
@@ -72,7 +92,16 @@ def _curve(vectors: np.ndarray, depth: int, codec: str) -> list[tuple[float, flo
 
 
 def _bd(ours, theirs) -> float:
-    return bd_psnr(*zip(*ours, strict=True), *zip(*theirs, strict=True))
+    """BD-PSNR on the finite points of both curves."""
+    return bd_psnr(*zip(*_finite(ours), strict=True), *zip(*_finite(theirs), strict=True))
+
+
+def _finite(points):
+    return [(b, p) for b, p in points if np.isfinite(p)]
+
+
+def _rows(points) -> list[dict]:
+    return [{"bpp": b, "psnr": p} for b, p in points]
 
 
 def main() -> None:
@@ -90,6 +119,8 @@ def main() -> None:
         curves[name] = {"bandelets": ours, "avif": avif}
         points = " ".join(f"{p:.2f} ({b:.3f})" for b, p in ours)
         line = f"{name}: {points}; over AVIF {_bd(ours, avif):+.2f} dB"
+        if len(_finite(ours)) < len(ours):
+            line += f" ({_capped(_rows(ours), _rows(avif))} with the lossless point capped)"
         if name in earlier:
             line += f", over the earlier run {_bd(ours, earlier[name]['bandelets']):+.3f} dB"
             line += f" (which was {_bd(earlier[name]['bandelets'], avif):+.2f} over AVIF)"
