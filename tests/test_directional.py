@@ -15,6 +15,8 @@ from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.wavelets import wavedec
 
+_TABLES = (directional.OFFSETS, directional.WEIGHTS, directional.SCALES)
+
 
 def test_synthesis_inverts_analysis_whatever_the_directions(rng):
     channels = [rng.normal(size=(64, 48)) for _ in range(2)]
@@ -42,16 +44,16 @@ def test_a_plain_directional_pass_is_the_cdf97_pass_to_the_last_bit(rng, transpo
     codes = np.zeros((-(-source.shape[0] // 8), -(-source.shape[1] // 8)), np.int64)
     plain, lifted = (np.empty(source.shape[::-1]).T if transposed else np.empty(source.shape) for _ in "ab")
     lifting.cdf97_pass(source, plain, True)
-    lifting.directional_pass(source, lifted, True, codes, directional.OFFSETS, 8)
+    lifting.directional_pass(source, lifted, True, codes, *_TABLES, 8)
     np.testing.assert_array_equal(lifted, plain)
     back = np.empty(source.shape[::-1]).T if transposed else np.empty(source.shape)
-    lifting.directional_pass(lifted, back, False, codes, directional.OFFSETS, 8)
+    lifting.directional_pass(lifted, back, False, codes, *_TABLES, 8)
     np.testing.assert_allclose(back, source, atol=1e-12)
 
 
 def test_direction_costs_count_the_high_pass_of_each_slope(rng):
     x = rng.normal(size=(16, 32))
-    costs = lifting.direction_costs(x, directional.OFFSETS, 8, 0.5)
+    costs = lifting.direction_costs(x, *_TABLES, 8, 0.5)
     assert costs.shape == (len(directional.OFFSETS), 2, 4)
     plain = np.empty_like(x)
     lifting.cdf97_pass(x, plain, True)
@@ -63,7 +65,7 @@ def test_direction_costs_count_the_high_pass_of_each_slope(rng):
     slope_one = list(directional.OFFSETS).index(1.0)
     assert np.all(
         np.argmin(
-            lifting.direction_costs(diagonal.astype(float), directional.OFFSETS, 8, 0.5)[:, 1:, 1:-1], axis=0
+            lifting.direction_costs(diagonal.astype(float), *_TABLES, 8, 0.5)[:, 1:, 1:-1], axis=0
         )
         == slope_one
     )

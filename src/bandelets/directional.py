@@ -37,15 +37,39 @@ import numpy as np
 from . import entropy
 from .bitstream import MAX_LIFTING, FormatError
 from .lagrangian import LAMBDA
-from .lifting import cdf97_pass, direction_costs, directional_pass
+from .lifting import ALPHA, BETA, DELTA, GAMMA, ZETA, cdf97_pass, direction_costs, directional_pass
 from .quantize import dequantize, quantize
 from .wavelets import _normalise, wavedec, waverec
 
 __all__ = ["LEVELS", "OFFSETS", "N_CONTEXTS", "analysis", "synthesis", "choose", "code_fields"]
 
-#: Slope of the prediction line (rows per column step) of each direction code; 0 is the plain
-#: separable CDF 9/7. Steeper lines are the other pass's business.
-OFFSETS = np.array([0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0, -1.0, 1.5, -1.5, 2.0, -2.0])
+#: Slope of the prediction line (rows per column step) of each CDF 9/7 direction code; 0 is the
+#: plain separable CDF 9/7. Steeper lines are the other pass's business.
+SLOPES_97 = (0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0, -1.0, 1.5, -1.5, 2.0, -2.0)
+#: Lifting steps of the CDF 9/7 filters: the weights of the neighbour before and after.
+_CDF97 = ((ALPHA, ALPHA), (BETA, BETA), (GAMMA, GAMMA), (DELTA, DELTA))
+#: One-sided steps: each reads one neighbour with twice the CDF 9/7 factor, the low-pass sample
+#: before the high-pass one (``PAIR_BEFORE``: pairs ``2k, 2k + 1``) or after it (``PAIR_AFTER``:
+#: pairs ``2k + 1, 2k + 2``), so that each pair is lifted on its own (a Haar-like transform: a step
+#: edge between two pairs leaves no high-pass sample) and a flat region gives every intermediate
+#: sample that CDF 9/7 gives, so a block of either meets one of the other without a seam.
+PAIR_BEFORE = ((2 * ALPHA, 0.0), (0.0, 2 * BETA), (2 * GAMMA, 0.0), (0.0, 2 * DELTA))
+PAIR_AFTER = ((0.0, 2 * ALPHA), (2 * BETA, 0.0), (0.0, 2 * GAMMA), (2 * DELTA, 0.0))
+#: Scaling of the pair codes after the CDF 9/7 one: the low-pass samples as CDF 9/7's, a high-pass
+#: sample's synthesis of the norm of a CDF 9/7 one (1.0915), so the quantizer weighs both alike.
+PAIR_HIGH_SCALE = 1.07008472317402 / 1.0915052823311142
+_PAIR_SCALES = (1.0, PAIR_HIGH_SCALE)
+#: Every direction code: ``(slope, steps, scales)``; code 0 is the plain CDF 9/7.
+_CODES = [(o, _CDF97, (1.0, 1.0)) for o in SLOPES_97] + [
+    (0.0, PAIR_BEFORE, _PAIR_SCALES),
+    (0.0, PAIR_AFTER, _PAIR_SCALES),
+]
+#: Slope of the lifting line of each code (rows per column step).
+OFFSETS = np.array([code[0] for code in _CODES])
+#: Weights of the neighbour before and after of each lifting step of each code.
+WEIGHTS = np.array([code[1] for code in _CODES])
+#: Factors of the low- and high-pass samples of each code after the CDF 9/7 scaling.
+SCALES = np.array([code[2] for code in _CODES])
 #: Finest levels lifted along directions, by default.
 LEVELS = 2
 #: Side of a block of one direction, in samples of the pass's input (rows; half as many
@@ -55,6 +79,10 @@ BLOCK = 8
 #: +0.07 dB BD-PSNR over 4 on the crease map, the acacia door and the fandisk normals at 256
 #: (2.5 lost as much; 9 lost 0.16 dB on the fandisk normals).
 PENALTY = 6.0
+#: Further price of a Haar code, in bits.
+HAAR_PENALTY = 0.0
+#: Finest levels where the Haar codes are tried.
+HAAR_LEVELS = 2
 #: Samples of a pass from which :func:`choose` searches the channels in parallel threads.
 THREADS_FROM = 256 * 256
 #: The directions are kept where they bring the estimated cost of a file below this fraction of
@@ -77,7 +105,7 @@ def _block_shape(shape: tuple[int, int]) -> tuple[int, int]:
     return -(-shape[0] // BLOCK), -(-shape[1] // 2 // (BLOCK // 2))
 
 
-def choose(blocks: list[np.ndarray], threshold: float) -> np.ndarray:
+def choose(blocks: list[np.ndarray], threshold: float, level: int = 1) -> np.ndarray:
     """Direction code of every block of one pass over ``blocks`` (the channels, same shape).
 
     The one of least ``sum log2(1 + 2 |d| / T)`` over the block's high-pass samples ``d`` (before
@@ -91,7 +119,7 @@ def choose(blocks: list[np.ndarray], threshold: float) -> np.ndarray:
     """
 
     def cost(x: np.ndarray) -> np.ndarray:
-        return direction_costs(x, OFFSETS, BLOCK, threshold)
+        return direction_costs(x, OFFSETS, WEIGHTS, SCALES, BLOCK, threshold)
 
     if len(blocks) > 1 and blocks[0].size >= THREADS_FROM:  # the channels in threads (nogil kernels)
         with ThreadPoolExecutor(max_workers=len(blocks)) as pool:
@@ -99,6 +127,7 @@ def choose(blocks: list[np.ndarray], threshold: float) -> np.ndarray:
     else:
         costs = sum(map(cost, blocks))
     costs[1:] += PENALTY
+    costs[len(SLOPES_97) :] += HAAR_PENALTY if level <= HAAR_LEVELS else np.inf
     return np.argmin(costs, axis=0)
 
 
@@ -152,10 +181,12 @@ def analysis(
         h, w = shape[0] >> (level - 1), shape[1] >> (level - 1)
         # The rows pass from the channel into the work array, the columns pass back.
         sources = [o[:h, :w] if p == 0 else k[:h, :w].T for o, k in zip(outs, works, strict=True)]
-        codes = choose(sources, threshold) if fields is None else np.asarray(fields[i], np.int64)
+        codes = choose(sources, threshold, level) if fields is None else np.asarray(fields[i], np.int64)
         chosen.append(codes)
         for o, k, source in zip(outs, works, sources, strict=True):
-            directional_pass(source, k[:h, :w] if p == 0 else o[:h, :w].T, True, codes, OFFSETS, BLOCK)
+            directional_pass(
+                source, k[:h, :w] if p == 0 else o[:h, :w].T, True, codes, OFFSETS, WEIGHTS, SCALES, BLOCK
+            )
     for o, k in zip(outs, works, strict=True):
         _plain(o, k, levels, lifting, True)
     return outs, chosen
@@ -176,7 +207,8 @@ def transform(
         h, w = shape[0] >> (level - 1), shape[1] >> (level - 1)
         ends = (x[:h, :w], work[:h, :w]) if p == 0 else (work[:h, :w].T, x[:h, :w].T)
         source, target = ends[::-1] if inverse else ends
-        directional_pass(source, target, not inverse, np.asarray(fields[i], np.int64), OFFSETS, BLOCK)
+        codes = np.asarray(fields[i], np.int64)
+        directional_pass(source, target, not inverse, codes, OFFSETS, WEIGHTS, SCALES, BLOCK)
     if not inverse:
         _plain(x, work, levels, lifting, True)
     return x

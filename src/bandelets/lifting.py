@@ -149,23 +149,23 @@ def _line_at(lines, pos):
 
 
 @njit(cache=True, nogil=True)
-def _lift_along(x, forward, by_lines, codes, slopes, block, steps):
-    """The first ``steps`` lifting steps of CDF 9/7 (or of its inverse), in place on ``x`` (split
-    layout, ``n`` per half), each block of ``block`` lines and ``block // 2`` samples reading the
-    other half along its slope ``slopes[codes[a, b]]`` (lines per sample).
+def _lift_along(x, forward, by_lines, codes, slopes, weights, block, steps):
+    """The first ``steps`` lifting steps of the filters of :func:`directional_pass` (or of their
+    inverse), in place on ``x`` (split layout, ``n`` per half), each block of ``block`` lines and
+    ``block // 2`` samples reading the other half along its slope ``slopes[codes[a, b]]`` (lines
+    per sample) with its weights ``weights[codes[a, b], step]``.
 
-    A step adds ``c (u + v)`` to each sample, ``u`` and ``v`` its two neighbours on the other half
-    (predict: ``s[k]``, ``s[k + 1]`` to ``d[k]``; update: ``d[k - 1]``, ``d[k]`` to ``s[k]``;
-    mirrored at the line's ends) read at lines ``r - slope`` and ``r + slope``, linearly
-    interpolated between lines (mirrored at the first and last). The blocks of a run of one
-    slope along a line (along memory, in a column pass) are lifted together.
+    A step adds ``p u + q v`` to each sample, ``(p, q)`` the step's weights, ``u`` and ``v`` its two
+    neighbours on the other half (predict: ``s[k]``, ``s[k + 1]`` to ``d[k]``; update: ``d[k - 1]``,
+    ``d[k]`` to ``s[k]``; mirrored at the line's ends) read at lines ``r - slope`` and
+    ``r + slope``, linearly interpolated between lines (mirrored at the first and last). The
+    blocks of a run of one code along a line (along memory, in a column pass) are lifted together.
     """
     lines, n = x.shape[0], x.shape[1] // 2
     width = block // 2
-    factors = (ALPHA, BETA, GAMMA, DELTA)
     for step in range(steps):
         k = step if forward else 3 - step
-        c = factors[k] if forward else -factors[k]
+        sign = 1.0 if forward else -1.0
         predict = k % 2 == 0
         target, source, shift = (n, 0, 1) if predict else (0, n, -1)
         if by_lines:  # runs along the lines
@@ -177,9 +177,11 @@ def _lift_along(x, forward, by_lines, codes, slopes, block, steps):
                         end += 1
                     top, bottom = a * block, min((a + 1) * block, lines)
                     left, right = b * width, min(end * width, n)
+                    code = codes[a, b]
                     _lift_run(
-                        x, top, bottom, left, right, slopes[codes[a, b]], c, target, source, shift, True
-                    )
+                        x, top, bottom, left, right, slopes[code], sign * weights[code, k, 0],
+                        sign * weights[code, k, 1], target, source, shift, True,
+                    )  # fmt: skip
                     b = end
         else:  # runs across the lines, along memory
             for b in range(codes.shape[1]):
@@ -190,20 +192,25 @@ def _lift_along(x, forward, by_lines, codes, slopes, block, steps):
                         end += 1
                     top, bottom = a * block, min(end * block, lines)
                     left, right = b * width, min((b + 1) * width, n)
+                    code = codes[a, b]
                     _lift_run(
-                        x, top, bottom, left, right, slopes[codes[a, b]], c, target, source, shift, False
-                    )
+                        x, top, bottom, left, right, slopes[code], sign * weights[code, k, 0],
+                        sign * weights[code, k, 1], target, source, shift, False,
+                    )  # fmt: skip
                     a = end
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _lift_run(x, top, bottom, left, right, slope, c, target, source, shift, by_lines):
-    """One step of :func:`_lift_along` on lines ``top:bottom``, samples ``left:right``, one slope."""
+def _lift_run(x, top, bottom, left, right, slope, c, e, target, source, shift, by_lines):
+    """One step of :func:`_lift_along` on lines ``top:bottom``, samples ``left:right``, one slope,
+    weights ``c`` (the neighbour before) and ``e`` (after)."""
     lines, n = x.shape[0], x.shape[1] // 2
+    if c == 0.0 and e == 0.0:
+        return
     # The neighbour at the line's end (predict: the last ``s``; update: the first ``d``) is mirrored.
     edge = n - 1 if shift == 1 else 0
     inner_left, inner_right = (left, min(right, n - 1)) if shift == 1 else (max(left, 1), right)
-    if slope == 0.0:
+    if slope == 0.0 and c == e:  # the plain CDF 9/7 step, term by term as :func:`_step`
         if by_lines:
             for r in range(top, bottom):
                 for j in range(inner_left, inner_right):
@@ -216,6 +223,13 @@ def _lift_run(x, top, bottom, left, right, slope, c, target, source, shift, by_l
             for r in range(top, bottom):
                 x[r, target + edge] += c * (x[r, source + edge] + x[r, source + edge])
         return
+    if slope == 0.0:  # one-sided weights straight across
+        for j in range(left, right):
+            p = source + (j if shift == 1 else max(j - 1, 0))
+            q = source + (min(j + 1, n - 1) if shift == 1 else j)
+            for r in range(top, bottom):
+                x[r, target + j] += c * x[r, p] + e * x[r, q]
+        return
     for r in range(top, bottom):
         u0, u1, f = _line_at(lines, r - slope)
         v0, v1, g = _line_at(lines, r + slope)
@@ -225,7 +239,29 @@ def _lift_run(x, top, bottom, left, right, slope, c, target, source, shift, by_l
             q = source + (min(j + 1, n - 1) if shift == 1 else j)
             before = x[u0, p] + f * (x[u1, p] - x[u0, p])
             after = x[v0, q] + g * (x[v1, q] - x[v0, q])
-            x[r, target + j] += c * (before + after)
+            if c == e:
+                x[r, target + j] += c * (before + after)
+            else:
+                x[r, target + j] += c * before + e * after
+
+
+@njit(cache=True, nogil=True)
+def _rescale(x, codes, scales, block, forward):
+    """Multiply (``forward``; else divide) the low- and high-pass samples of every block of ``x``
+    (split layout) by ``scales[code]`` of its code, skipping the codes scaled by ``(1, 1)``."""
+    lines, n = x.shape[0], x.shape[1] // 2
+    width = block // 2
+    for a in range(codes.shape[0]):
+        for b in range(codes.shape[1]):
+            fs, fd = scales[codes[a, b], 0], scales[codes[a, b], 1]
+            if fs == 1.0 and fd == 1.0:
+                continue
+            if not forward:
+                fs, fd = 1.0 / fs, 1.0 / fd
+            for r in range(a * block, min((a + 1) * block, lines)):
+                for j in range(b * width, min((b + 1) * width, n)):
+                    x[r, j] *= fs
+                    x[r, n + j] *= fd
 
 
 @njit(cache=True, nogil=True)
@@ -241,10 +277,18 @@ def _high_pass_bits(x, block, threshold, costs):
 
 
 def directional_pass(
-    source: np.ndarray, target: np.ndarray, forward: bool, codes: np.ndarray, slopes: np.ndarray, block: int
+    source: np.ndarray,
+    target: np.ndarray,
+    forward: bool,
+    codes: np.ndarray,
+    slopes: np.ndarray,
+    weights: np.ndarray,
+    scales: np.ndarray,
+    block: int,
 ) -> None:
-    """One CDF 9/7 pass as :func:`cdf97_pass` (whole-sample symmetric extension), each lifting step
-    reading the other half of the line along a slope per block (:mod:`bandelets.directional`).
+    """One lifting pass as :func:`cdf97_pass` (whole-sample symmetric extension), each block with
+    its own four lifting steps, each reading the other half of the line along a slope
+    (:mod:`bandelets.directional`).
 
     Parameters
     ----------
@@ -252,28 +296,42 @@ def directional_pass(
         As :func:`cdf97_pass`.
     forward : bool
     codes : ndarray of int64, shape (ceil(lines / block), ceil(n / (block // 2)))
-        Slope code of every block of ``block`` lines and ``block // 2`` samples of each half.
-    slopes : ndarray of float64
-        Slope of every code, in lines per sample; 0 reads straight across as :func:`cdf97_pass`
-        (the same numbers).
+        Code of every block of ``block`` lines and ``block // 2`` samples of each half.
+    slopes : ndarray of float64, shape (codes,)
+        Slope of every code, in lines per sample.
+    weights : ndarray of float64, shape (codes, 4, 2)
+        Weights of the neighbour before and after of each of the four lifting steps of every
+        code; ``(c, c)`` with the CDF 9/7 factors ``c`` and slope 0 are :func:`cdf97_pass` (the
+        same numbers).
+    scales : ndarray of float64, shape (codes, 2)
+        Factors of the low- and high-pass samples of every code after the CDF 9/7 scaling.
     block : int
         Lines of a block (even).
     """
     by_lines = _by_lines(source)
     if forward:
         _split(source, target, by_lines, False)
-        _lift_along(target, True, by_lines, codes, slopes, block, 4)
+        _lift_along(target, True, by_lines, codes, slopes, weights, block, 4)
         _normalise(target, by_lines, True)
+        _rescale(target, codes, scales, block, True)
     else:
+        _rescale(source, codes, scales, block, False)
         _normalise(source, by_lines, False)
-        _lift_along(source, False, by_lines, codes, slopes, block, 4)
+        _lift_along(source, False, by_lines, codes, slopes, weights, block, 4)
         _merge(source, target, by_lines, False)
 
 
-def direction_costs(source: np.ndarray, slopes: np.ndarray, block: int, threshold: float) -> np.ndarray:
+def direction_costs(
+    source: np.ndarray,
+    slopes: np.ndarray,
+    weights: np.ndarray,
+    scales: np.ndarray,
+    block: int,
+    threshold: float,
+) -> np.ndarray:
     """``costs[i, a, b]``: the sum of ``log2(1 + 2 |d| / T)`` over the high-pass samples ``d``
-    (before the final scaling) of block ``a, b`` of :func:`directional_pass` of ``source`` with
-    slope ``slopes[i]`` everywhere, ``T`` = ``threshold``."""
+    (before the final CDF 9/7 scaling, times ``scales[i, 1]``) of block ``a, b`` of
+    :func:`directional_pass` of ``source`` with code ``i`` everywhere, ``T`` = ``threshold``."""
     lines, n = source.shape[0], source.shape[1] // 2
     split = np.empty((lines, 2 * n))
     _split(source, split, _by_lines(source), False)
@@ -283,8 +341,8 @@ def direction_costs(source: np.ndarray, slopes: np.ndarray, block: int, threshol
     for i in range(len(slopes)):
         trial[...] = split
         # The high-pass samples are final after the third step.
-        _lift_along(trial, True, True, np.full(shape, i, np.int64), slopes, block, 3)
-        _high_pass_bits(trial, block, threshold, costs[i])
+        _lift_along(trial, True, True, np.full(shape, i, np.int64), slopes, weights, block, 3)
+        _high_pass_bits(trial, block, threshold / scales[i, 1], costs[i])
     return costs
 
 
