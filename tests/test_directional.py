@@ -122,8 +122,10 @@ def test_normal_maps_are_lifted_on_request(crease_map):
     }
     assert unpack(data[True])[0].lifting == directional.LEVELS
     assert unpack(data[False])[0].lifting == 0
-    # On the small map the directions do not pay: by default the file is coded without them.
-    assert data[None] == data[False]
+    # On the small map the directions pay with the pair codes (they did not with the slopes
+    # alone): by default the file is lifted, and smaller at the same threshold.
+    assert data[None] == data[True]
+    assert len(data[True]) < 0.95 * len(data[False])
     quality = {k: psnr(crease_map, bandelets.decode(d), "normal-map") for k, d in data.items()}
     # The same threshold gives about the same quality (the gain, a smaller file for it, shows on
     # larger maps: benchmarks/rd_normal_maps.py).
@@ -162,3 +164,69 @@ def test_lifting_where_it_cannot_apply_is_refused(crease_map, edge_image):
     header, streams = unpack(data)
     with pytest.raises(FormatError, match="directional levels"):
         unpack(pack(replace(header, lifting=4), streams))
+
+
+def _pair_code(steps) -> int:
+    return next(i for i, w in enumerate(directional.WEIGHTS) if np.array_equal(w, steps))
+
+
+@pytest.mark.parametrize("position", [32, 33])
+def test_a_step_between_two_flat_facets_at_an_angle_leaves_no_high_pass_in_one_pair_code(position):
+    # Two flat facets of a normal map (constant components), the step between them at an angle
+    # (two columns further every 8 rows), starting at an even or odd column.
+    rows = np.arange(16)[:, None]
+    x = np.where(np.arange(64)[None, :] < position + rows // 8 * 2, 0.3, -0.55) + np.zeros((16, 1))
+    codes = np.zeros((2, 8), np.int64)
+    plain, paired = np.empty_like(x), np.empty_like(x)
+    lifting.directional_pass(x, plain, True, codes, *_TABLES, 8)
+    assert np.sum(np.abs(plain[:, 32:]) > 1e-3) >= 3 * 16  # CDF 9/7 rings: 3 or 4 per row
+    # The pair code that puts the step between two pairs: PAIR_BEFORE for a step at an even
+    # column (pairs 2k, 2k + 1), PAIR_AFTER at an odd one.
+    steps = directional.PAIR_BEFORE if position % 2 == 0 else directional.PAIR_AFTER
+    codes[:] = _pair_code(steps)
+    lifting.directional_pass(x, paired, True, codes, *_TABLES, 8)
+    np.testing.assert_allclose(paired[:, 32:], 0.0, atol=1e-12)
+    # The other one leaves one high-pass sample per row, no more.
+    other = directional.PAIR_AFTER if position % 2 == 0 else directional.PAIR_BEFORE
+    codes[:] = _pair_code(other)
+    lifting.directional_pass(x, paired, True, codes, *_TABLES, 8)
+    assert np.all(np.sum(np.abs(paired[:, 32:]) > 1e-3, axis=1) == 1)
+
+
+def test_pair_codes_meet_cdf97_blocks_without_a_seam_on_a_flat_region():
+    # A constant line: whatever the mix of codes, no high-pass sample and the low-pass of CDF 9/7.
+    x = np.full((16, 64), 0.7)
+    codes = np.array([[0, 13, 14, 0, 14, 13, 13, 0], [13, 0, 14, 7, 0, 13, 14, 14]])
+    lifted, plain = np.empty_like(x), np.empty_like(x)
+    lifting.directional_pass(x, lifted, True, codes, *_TABLES, 8)
+    lifting.cdf97_pass(x, plain, True)
+    np.testing.assert_allclose(lifted, plain, atol=1e-12)
+    np.testing.assert_allclose(lifted[:, 32:], 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("code", range(len(directional.OFFSETS)))
+def test_every_code_is_exactly_inverted_and_as_heavy_as_cdf97(rng, code):
+    source = rng.normal(size=(16, 32))
+    codes = np.full((2, 4), code, np.int64)
+    lifted, back = np.empty_like(source), np.empty_like(source)
+    lifting.directional_pass(source, lifted, True, codes, *_TABLES, 8)
+    lifting.directional_pass(lifted.copy(), back, False, codes, *_TABLES, 8)
+    np.testing.assert_allclose(back, source, atol=1e-12)
+    if code in (_pair_code(directional.PAIR_BEFORE), _pair_code(directional.PAIR_AFTER)):
+        # A high-pass sample's synthesis has the norm of a CDF 9/7 one (1.0915), away from the ends.
+        impulse = np.zeros((16, 32))
+        impulse[:, 24] = 1.0
+        lifting.directional_pass(impulse, back, False, codes, *_TABLES, 8)
+        np.testing.assert_allclose(np.linalg.norm(back[8]), 1.0915052823311142, rtol=1e-12)
+
+
+def test_pair_codes_are_kept_where_they_pay():
+    # A map of flat plates with steps (as an 8-bit map's flat regions): the pairs pay; on the
+    # smooth bumps the estimate keeps the slopes alone.
+    v, u = np.mgrid[0:128, 0:128]
+    plates = [np.where((u + v // 3) % 40 < 20, 0.3, -0.2), np.where((v - u // 4) % 32 < 12, 0.1, 0.5)]
+    _, fields = directional.lift(plates, 5, 2, 0.01)
+    assert any(np.any(f >= len(directional.SLOPES_97)) for f in fields)
+    bumps = list(np.moveaxis(bump_normal_map(128)[..., :2], -1, 0))
+    _, fields = directional.lift(bumps, 5, 2, 0.005)
+    assert not any(np.any(f >= len(directional.SLOPES_97)) for f in fields)

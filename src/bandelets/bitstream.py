@@ -62,7 +62,9 @@ only a diamond, and added lossless files (transform code 2,
 predicted and coded in the coefficient stream; the splits and directions streams are empty, the
 file has no restoration, lifting or loop filter, its threshold is 1 and its wavelet levels 1 (no
 meaning), a normal map's channels are the stored ones (3, or 2 of layout ``xy``) and decode to
-the source's values, not renormalised. This build reads version 12 only.
+the source's values, not renormalised. Version 12 also adds two lifting codes, 13 and 14, that
+lift each pair of samples of a block on its own (:data:`bandelets.directional.PAIR_BEFORE`,
+:data:`bandelets.directional.PAIR_AFTER`). This build reads version 12 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
