@@ -64,9 +64,7 @@ def test_direction_costs_count_the_high_pass_of_each_slope(rng):
     diagonal = np.subtract.outer(np.arange(16), np.arange(32)) % 4 < 2  # constant along r - c
     slope_one = list(directional.OFFSETS).index(1.0)
     assert np.all(
-        np.argmin(
-            lifting.direction_costs(diagonal.astype(float), *_TABLES, 8, 0.5)[:, 1:, 1:-1], axis=0
-        )
+        np.argmin(lifting.direction_costs(diagonal.astype(float), *_TABLES, 8, 0.5)[:, 1:, 1:-1], axis=0)
         == slope_one
     )
 
@@ -225,8 +223,8 @@ def test_pair_codes_are_kept_where_they_pay():
     # smooth bumps the estimate keeps the slopes alone.
     v, u = np.mgrid[0:128, 0:128]
     plates = [np.where((u + v // 3) % 40 < 20, 0.3, -0.2), np.where((v - u // 4) % 32 < 12, 0.1, 0.5)]
-    _, fields = directional.lift(plates, 5, 2, 0.01)
+    _, fields, _ = directional.lift(plates, 5, 2, 0.01)
     assert any(np.any(f >= len(directional.SLOPES_97)) for f in fields)
     bumps = list(np.moveaxis(bump_normal_map(128)[..., :2], -1, 0))
-    _, fields = directional.lift(bumps, 5, 2, 0.005)
+    _, fields, _ = directional.lift(bumps, 5, 2, 0.005)
     assert not any(np.any(f >= len(directional.SLOPES_97)) for f in fields)

@@ -311,6 +311,7 @@ def pays(
     threshold: float,
     frames: bool = False,
     plain: list[np.ndarray] | None = None,
+    lifted_cost: float | None = None,
 ) -> bool:
     """Whether the directions ``fields`` pay on ``channels`` at the threshold ``T``: whether
     :func:`cost_ratio` is below :data:`PAYS_BELOW` (``frames``, the channels of a normal map
@@ -324,10 +325,11 @@ def pays(
     bumps and the lava flow the ratio is 1.00 to 1.01 at every rate: directions there lost up to
     0.7 dB.
 
-    ``plain``: the CDF 9/7 coefficients of ``channels`` when the caller has them (else made again).
+    ``plain``: the CDF 9/7 coefficients of ``channels`` when the caller has them (else made again);
+    ``lifted_cost``: the :func:`cost` of ``lifted`` when the caller has it (:func:`lift`).
     """
     below = PAYS_BELOW_FRAMES if frames else PAYS_BELOW
-    return cost_ratio(channels, lifted, fields, levels, lifting, threshold, plain) < below
+    return cost_ratio(channels, lifted, fields, levels, lifting, threshold, plain, lifted_cost) < below
 
 
 def cost_ratio(
@@ -338,17 +340,25 @@ def cost_ratio(
     lifting: int,
     threshold: float,
     plain: list[np.ndarray] | None = None,
+    lifted_cost: float | None = None,
 ) -> float:
-    """:func:`cost` of the lifted coefficients ``lifted`` (directions ``fields``) over that of the
-    plain CDF 9/7 ones of ``channels`` (``plain``, if given)."""
+    """:func:`cost` of the lifted coefficients ``lifted`` (directions ``fields``; ``lifted_cost`` if
+    given) over that of the plain CDF 9/7 ones of ``channels`` (``plain``, if given)."""
     if plain is None:
         plain = [wavedec(np.array(x, dtype=np.float64), "cdf97", levels) for x in channels]
     reference = cost(channels, plain, None, levels, lifting, threshold)
-    return cost(channels, lifted, fields, levels, lifting, threshold) / reference if reference > 0 else 1.0
+    if lifted_cost is None:
+        lifted_cost = cost(channels, lifted, fields, levels, lifting, threshold)
+    return lifted_cost / reference if reference > 0 else 1.0
 
 
 def cost(
-    channels, coefficients: list[np.ndarray], fields: list[np.ndarray] | None, levels: int, lifting: int, threshold: float
+    channels,
+    coefficients: list[np.ndarray],
+    fields: list[np.ndarray] | None,
+    levels: int,
+    lifting: int,
+    threshold: float,
 ) -> float:
     """``D + LAMBDA T**2 R`` of ``coefficients`` lifted with directions ``fields`` (None: the plain
     CDF 9/7), ``D`` the squared error of the channels after quantization at the threshold ``T`` (no
@@ -373,12 +383,20 @@ def cost(
 def lift(channels, levels: int, lifting: int, threshold: float):
     """:func:`analysis` of ``channels`` with the directions chosen for ``T`` (``threshold``), with
     the pair codes where they pay: where they bring the :func:`cost` below :data:`PAIRS_PAY_BELOW`
-    of that of the slopes alone, else with the slopes alone."""
+    of that of the slopes alone, else with the slopes alone.
+
+    Returns
+    -------
+    coefficients, fields : as :func:`analysis`
+    cost : float or None
+        Their :func:`cost`, where it was needed (None: no block took a pair code).
+    """
     lifted, fields = analysis(channels, levels, lifting, threshold=threshold)
     if not any(np.any(f >= len(SLOPES_97)) for f in fields):
-        return lifted, fields
-    slopes = analysis(channels, levels, lifting, threshold=threshold, pairs=False)
+        return lifted, fields, None
     with_pairs = cost(channels, lifted, fields, levels, lifting, threshold)
-    if with_pairs < PAIRS_PAY_BELOW * cost(channels, *slopes, levels, lifting, threshold):
-        return lifted, fields
-    return slopes
+    slopes = analysis(channels, levels, lifting, threshold=threshold, pairs=False)
+    without = cost(channels, *slopes, levels, lifting, threshold)
+    if with_pairs < PAIRS_PAY_BELOW * without:
+        return lifted, fields, with_pairs
+    return *slopes, without

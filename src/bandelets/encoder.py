@@ -598,14 +598,14 @@ def _lifted(
     coded: np.ndarray, plain: list, levels: int, lifting_levels: int, threshold: float, check: bool
 ) -> tuple[list, list | None, int]:
     """The coefficients of the (padded) channels of ``coded`` lifted along directions, the
-    directions, chosen for ``threshold`` (:func:`bandelets.directional.analysis`), and the levels
+    directions, chosen for ``threshold`` (:func:`bandelets.directional.lift`: slopes and pair codes), and the levels
     lifted; or, with ``check``, where the directions do not pay
     (:func:`bandelets.directional.pays`), the plain coefficients ``plain``, None and 0."""
     channels = padded_channels(coded, levels)
-    lifted, fields = directional.lift(channels, levels, lifting_levels, threshold)
+    lifted, fields, cost = directional.lift(channels, levels, lifting_levels, threshold)
     frames = len(channels) == 3  # a normal map's three channels are coded in local frames
     if not check or directional.pays(
-        channels, lifted, fields, levels, lifting_levels, threshold, frames, plain
+        channels, lifted, fields, levels, lifting_levels, threshold, frames, plain, cost
     ):
         return lifted, fields, lifting_levels
     return plain, None, 0
