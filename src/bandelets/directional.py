@@ -48,7 +48,7 @@ import numpy as np
 from . import entropy
 from .bitstream import MAX_LIFTING, FormatError
 from .lagrangian import LAMBDA
-from .lifting import ALPHA, BETA, DELTA, GAMMA, ZETA, cdf97_pass, direction_costs, directional_pass
+from .lifting import ALPHA, BETA, DELTA, GAMMA, cdf97_pass, direction_costs, directional_pass
 from .quantize import dequantize, quantize
 from .wavelets import _normalise, wavedec, waverec
 

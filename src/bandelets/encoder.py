@@ -598,8 +598,8 @@ def _lifted(
     coded: np.ndarray, plain: list, levels: int, lifting_levels: int, threshold: float, check: bool
 ) -> tuple[list, list | None, int]:
     """The coefficients of the (padded) channels of ``coded`` lifted along directions, the
-    directions, chosen for ``threshold`` (:func:`bandelets.directional.lift`: slopes and pair codes), and the levels
-    lifted; or, with ``check``, where the directions do not pay
+    directions, chosen for ``threshold`` (:func:`bandelets.directional.lift`: slopes and pair
+    codes), and the levels lifted; or, with ``check``, where the directions do not pay
     (:func:`bandelets.directional.pays`), the plain coefficients ``plain``, None and 0."""
     channels = padded_channels(coded, levels)
     lifted, fields, cost = directional.lift(channels, levels, lifting_levels, threshold)
