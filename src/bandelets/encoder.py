@@ -602,7 +602,7 @@ def _lifted(
     codes), and the levels lifted; or, with ``check``, where the directions do not pay
     (:func:`bandelets.directional.pays`), the plain coefficients ``plain``, None and 0."""
     channels = padded_channels(coded, levels)
-    lifted, fields, cost = directional.lift(channels, levels, lifting_levels, threshold)
+    lifted, fields, lifting_levels, cost = directional.lift(channels, levels, lifting_levels, threshold)
     frames = len(channels) == 3  # a normal map's three channels are coded in local frames
     if not check or directional.pays(
         channels, lifted, fields, levels, lifting_levels, threshold, frames, plain, cost
