@@ -2,12 +2,16 @@
 
     python benchmarks/rd_normal_maps.py [--maps ../shared/data/normal-maps] [--out out/rd-normal-maps]
     python benchmarks/rd_normal_maps.py --samples crease bumps --size 512
+    python benchmarks/rd_normal_maps.py --rendered fandisk-top bunny-top --size 512
 
 (from the repository root; about 10 minutes on the 2-core machine.) For every real map of
 ``--maps`` (skipped with a message when the folder is absent), or with ``--samples`` every
 generated map named (:mod:`bandelets.samples`, ``--size`` pixels a side: ``crease`` and ``bumps``
 float, the anchors given 16-bit samples, 12-bit for AVIF; ``bevel`` 8-bit samples, as a PNG, given
-to every codec as the real maps are), and every rate of 0.25 to 2 bpp,
+to every codec as the real maps are), or with ``--rendered`` every object-space map named of
+:data:`RENDERED` (:func:`bandelets.surfaces.render.render_normals` of a mesh of ``--meshes``,
+16-bit samples, as the held-out maps of issue 15 are, given to every codec: 12-bit to AVIF),
+and every rate of 0.25 to 2 bpp,
 one file per codec, written under ``OUT/MAP/`` and read back; every bpp is ``8 x bytes /
 pixels`` of that file and every PSNR that of the vectors it decodes to, renormalised, against
 the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). The codecs:
@@ -68,6 +72,12 @@ OURS = {
     "wavelet": {"transform": "wavelet", "lifting": False},
 }
 CODECS = (*OURS, "jpeg2000", "avif", "jpegxl")
+#: Rendered object-space maps: mesh, its axis turned up, crease angle (degrees), view.
+RENDERED = {
+    "fandisk-top": ("fandisk.off", "-z", 45.0, (0.0, 0.0, 1.0)),
+    "fandisk-oblique": ("fandisk.off", "-z", 45.0, (1.0, 1.0, 2.0)),
+    "bunny-top": ("bunny.off", "+y", 180.0, (0.0, 0.0, 1.0)),
+}
 SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map, "bevel": bevel_normal_map}
 #: Codecs of the lossless table.
 LOSSLESS = ("bandelets", "jpegxl", "avif", "jpeg2000", "png")
@@ -89,6 +99,21 @@ def sample(name: str, size: int) -> tuple[np.ndarray, int]:
     the real maps are given, else 0: float)."""
     array = SAMPLES[name](size)
     return (from_samples(array, "normal-map", 8), 8) if array.dtype == np.uint8 else (array, 0)
+
+
+def rendered(name: str, size: int, meshes: Path) -> tuple[np.ndarray, int] | None:
+    """The object-space map ``name`` of :data:`RENDERED`, ``size`` pixels a side, as its 16-bit
+    samples read back, and 16; None (with a message) when the mesh is not in ``meshes``."""
+    from bandelets.surfaces.codec import load_mesh
+    from bandelets.surfaces.render import render_normals, to_samples, turned_up
+
+    mesh_name, up, crease, view = RENDERED[name]
+    if not (meshes / mesh_name).is_file():
+        print(f"skipping {name}: {mesh_name} not in {meshes} (see --meshes)")
+        return None
+    mesh = load_mesh(meshes / mesh_name)
+    normals = render_normals(turned_up(mesh.vertices, up), mesh.faces, size, view, crease)
+    return from_samples(to_samples(normals, 16), "normal-map", 16), 16
 
 
 def point(vectors: np.ndarray, depth: int, codec: str, rate: float, folder: Path) -> dict:
@@ -172,6 +197,8 @@ def main() -> None:
     parser.add_argument("--maps", type=Path, default=Path("../shared/data/normal-maps"))
     parser.add_argument("--out", type=Path, default=Path("out/rd-normal-maps"))
     parser.add_argument("--samples", nargs="+", choices=SAMPLES, help="generated maps instead of --maps")
+    parser.add_argument("--rendered", nargs="+", choices=RENDERED, help="maps rendered from --meshes instead")
+    parser.add_argument("--meshes", type=Path, default=Path("../shared/data/meshes"))
     parser.add_argument("--size", type=int, default=256, help="side of the generated maps (256)")
     parser.add_argument("--results", type=Path, help="where the tables go (default: see above)")
     parser.add_argument(
@@ -187,6 +214,12 @@ def main() -> None:
     if args.samples:
         maps = {f"{name}@{args.size}": sample(name, args.size) for name in args.samples}
         results = HERE / f"rd-normal-maps-samples-{args.size}.md"
+    elif args.rendered:
+        made = {f"{name}@{args.size}": rendered(name, args.size, args.meshes) for name in args.rendered}
+        maps = {name: made[name] for name in made if made[name] is not None}
+        if not maps:
+            return
+        results = HERE / f"rd-normal-maps-rendered-{args.size}.md"
     else:
         paths = sorted(args.maps.glob("*.png")) if args.maps.is_dir() else []
         if not paths:
@@ -236,11 +269,13 @@ def main() -> None:
         "(a lower bound of what the exact file is worth against it; '=': no lossless point, as "
         "above), over the whole common rate range:\n\n" + "\n".join([header, summary[1], *capped]) + "\n"
     )
-    if not args.samples:
+    if not (args.samples or args.rendered):
         text += "\nLossless files, bpp (each decoded and checked):\n\n" + "\n".join(exact) + "\n"
     command = "python benchmarks/rd_normal_maps.py"
     if args.samples:
         command += f" --samples {' '.join(args.samples)} --size {args.size}"
+    if args.rendered:
+        command += f" --rendered {' '.join(args.rendered)} --size {args.size}"
     if codecs != list(CODECS):
         command += f" --codecs {','.join(codecs)}"
     if args.results:
