@@ -10,7 +10,8 @@ generated map named (:mod:`bandelets.samples`, ``--size`` pixels a side: ``creas
 float, the anchors given 16-bit samples, 12-bit for AVIF; ``bevel`` 8-bit samples, as a PNG, given
 to every codec as the real maps are), or with ``--rendered`` every object-space map named of
 :data:`RENDERED` (:func:`bandelets.surfaces.render.render_normals` of a mesh of ``--meshes``,
-16-bit samples, as the held-out maps of issue 15 are, given to every codec: 12-bit to AVIF),
+16-bit samples, as the held-out maps of issue 15 are, given to every codec: 12-bit to AVIF;
+``--background``: the vector of the empty pixels, :data:`BACKGROUNDS`),
 and every rate of 0.25 to 2 bpp,
 one file per codec, written under ``OUT/MAP/`` and read back; every bpp is ``8 x bytes /
 pixels`` of that file and every PSNR that of the vectors it decodes to, renormalised, against
@@ -78,6 +79,10 @@ RENDERED = {
     "fandisk-oblique": ("fandisk.off", "-z", 45.0, (1.0, 1.0, 2.0)),
     "bunny-top": ("bunny.off", "+y", 180.0, (0.0, 0.0, 1.0)),
 }
+#: Vectors a baker writes where no surface is seen. ``zero`` is 32768 in 16-bit samples, a
+#: vector of length 1.5e-5 whose direction any error of one sample turns: the anchors' PSNR
+#: collapses on it (AVIF 9 to 21 dB on fandisk-top at 256), so it measures nothing useful.
+BACKGROUNDS = {"flat": (0.0, 0.0, 1.0), "black": (-1.0, -1.0, -1.0), "zero": (0.0, 0.0, 0.0)}
 SAMPLES = {"crease": crease_normal_map, "bumps": bump_normal_map, "bevel": bevel_normal_map}
 #: Codecs of the lossless table.
 LOSSLESS = ("bandelets", "jpegxl", "avif", "jpeg2000", "png")
@@ -101,9 +106,10 @@ def sample(name: str, size: int) -> tuple[np.ndarray, int]:
     return (from_samples(array, "normal-map", 8), 8) if array.dtype == np.uint8 else (array, 0)
 
 
-def rendered(name: str, size: int, meshes: Path) -> tuple[np.ndarray, int] | None:
-    """The object-space map ``name`` of :data:`RENDERED`, ``size`` pixels a side, as its 16-bit
-    samples read back, and 16; None (with a message) when the mesh is not in ``meshes``."""
+def rendered(name: str, size: int, meshes: Path, background: str = "flat") -> tuple[np.ndarray, int] | None:
+    """The object-space map ``name`` of :data:`RENDERED`, ``size`` pixels a side, on the
+    ``background`` of :data:`BACKGROUNDS`, as its 16-bit samples read back, and 16; None (with
+    a message) when the mesh is not in ``meshes``."""
     from bandelets.surfaces.codec import load_mesh
     from bandelets.surfaces.render import render_normals, to_samples, turned_up
 
@@ -112,7 +118,8 @@ def rendered(name: str, size: int, meshes: Path) -> tuple[np.ndarray, int] | Non
         print(f"skipping {name}: {mesh_name} not in {meshes} (see --meshes)")
         return None
     mesh = load_mesh(meshes / mesh_name)
-    normals = render_normals(turned_up(mesh.vertices, up), mesh.faces, size, view, crease)
+    vertices = turned_up(mesh.vertices, up)
+    normals = render_normals(vertices, mesh.faces, size, view, crease, background=BACKGROUNDS[background])
     return from_samples(to_samples(normals, 16), "normal-map", 16), 16
 
 
@@ -199,6 +206,7 @@ def main() -> None:
     parser.add_argument("--samples", nargs="+", choices=SAMPLES, help="generated maps instead of --maps")
     parser.add_argument("--rendered", nargs="+", choices=RENDERED, help="maps rendered from --meshes instead")
     parser.add_argument("--meshes", type=Path, default=Path("../shared/data/meshes"))
+    parser.add_argument("--background", choices=BACKGROUNDS, default="flat", help="of --rendered (flat)")
     parser.add_argument("--size", type=int, default=256, help="side of the generated maps (256)")
     parser.add_argument("--results", type=Path, help="where the tables go (default: see above)")
     parser.add_argument(
@@ -215,11 +223,15 @@ def main() -> None:
         maps = {f"{name}@{args.size}": sample(name, args.size) for name in args.samples}
         results = HERE / f"rd-normal-maps-samples-{args.size}.md"
     elif args.rendered:
-        made = {f"{name}@{args.size}": rendered(name, args.size, args.meshes) for name in args.rendered}
+        suffix = "" if args.background == "flat" else f"-{args.background}"
+        made = {
+            f"{name}{suffix}@{args.size}": rendered(name, args.size, args.meshes, args.background)
+            for name in args.rendered
+        }
         maps = {name: made[name] for name in made if made[name] is not None}
         if not maps:
             return
-        results = HERE / f"rd-normal-maps-rendered-{args.size}.md"
+        results = HERE / f"rd-normal-maps-rendered{suffix}-{args.size}.md"
     else:
         paths = sorted(args.maps.glob("*.png")) if args.maps.is_dir() else []
         if not paths:
@@ -276,6 +288,7 @@ def main() -> None:
         command += f" --samples {' '.join(args.samples)} --size {args.size}"
     if args.rendered:
         command += f" --rendered {' '.join(args.rendered)} --size {args.size}"
+        command += "" if args.background == "flat" else f" --background {args.background}"
     if codecs != list(CODECS):
         command += f" --codecs {','.join(codecs)}"
     if args.results:

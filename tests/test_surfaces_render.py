@@ -20,7 +20,7 @@ def _box():
 
 def test_a_box_seen_from_above_is_its_top_face_on_the_background():
     vertices, faces = _box()
-    normals = render_normals(vertices, faces, 64, crease_angle=45.0, margin=0.125)
+    normals = render_normals(vertices, faces, 64, crease_angle=45.0, margin=0.125, background=(0, 0, 0))
     # The box spans 48 of the 64 columns (2 wide) and 24 rows (1 deep), centred.
     assert np.array_equal(normals[20:44, 8:56], np.broadcast_to([0.0, 0.0, 1.0], (24, 48, 3)))
     empty = np.ones((64, 64), bool)
@@ -33,9 +33,12 @@ def test_a_silhouette_pixel_averages_what_it_covers():
     vertices, faces = _box()
     # The box's left edge 7.5 px in: half of pixel 7 is the top face, half background.
     normals = render_normals(vertices, faces, 64, crease_angle=45.0, margin=0.125 - 0.5 / 64)
-    column = normals[32, :, 2]
-    assert column[6] == 0.0 and column[7] == 0.5 and column[8] == 1.0
-    assert column[56] == 0.5 and column[57] == 0.0
+    assert np.array_equal(normals[32, 6:9], [[0.0, 0.0, 1.0]] * 3)  # top face on flat background
+    normals = render_normals(
+        vertices, faces, 64, crease_angle=45, margin=0.125 - 0.5 / 64, background=(1, 0, 0)
+    )
+    assert np.array_equal(normals[32, 5:10], [[1, 0, 0], [1, 0, 0], [0.5, 0, 0.5], [0, 0, 1], [0, 0, 1]])
+    assert np.array_equal(normals[32, 56:58], [[0.5, 0, 0.5], [1, 0, 0]])
 
 
 def test_the_crease_angle_splits_sharp_edges_only():
@@ -60,7 +63,7 @@ def test_a_sphere_shaded_smooth_shows_its_radial_normals():
     expected = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, 1))], -1)
     assert np.degrees(np.arccos(np.clip(np.sum(normals * expected, -1)[inside], -1, 1))).max() < 2.0
     # The oblique view stores object-space normals: seen from +x, the visible ones have x > 0.
-    side = render_normals(sphere.vertices, sphere.faces, 32, view=(1.0, 0.0, 0.0), supersampling=1)
+    side = render_normals(sphere.vertices, sphere.faces, 32, (1, 0, 0), supersampling=1, background=(0, 0, 0))
     seen = np.linalg.norm(side, axis=-1) > 0
     assert seen.mean() > 0.5 and side[seen][:, 0].min() > -0.2 and side[seen][:, 0].mean() > 0.5
 
@@ -78,7 +81,7 @@ def test_turned_up_is_a_rotation_taking_the_axis_to_z():
 @pytest.mark.parametrize("depth", [0, 16])
 def test_a_map_on_a_zero_background_codes_without_nan(depth):
     sphere = trimesh.creation.icosphere(subdivisions=3)
-    normals = render_normals(sphere.vertices, sphere.faces, 64)
+    normals = render_normals(sphere.vertices, sphere.faces, 64, background=(0.0, 0.0, 0.0))
     array = to_samples(normals) if depth else normals
     decoded = bandelets.decode(bandelets.encode(array, bpp=1.0, kind="normal-map"))
     assert np.all(np.isfinite(decoded))

@@ -5,8 +5,13 @@ the square with a margin, and gives each pixel the object-space unit normal of t
 sees, antialiased: ``supersampling x supersampling`` samples per pixel, each the normal of the
 nearest front-facing triangle there, averaged as a renderer resolves its samples (not
 renormalised: a pixel on a silhouette is the mean of what it covers). Where no surface is seen
-the map holds ``background``: the zero vector by default, which a float renderer writes for an
-empty pixel and a 16-bit file holds as ``(32768, 32768, 32768)`` (:func:`to_samples`).
+the map holds ``background``: ``(0, 0, 1)`` by default, the flat normal a tangent-space baker
+writes. The zero vector a float renderer writes for an empty pixel is a trap in 16-bit samples:
+``(32768, 32768, 32768)`` is a vector of length 1.5e-5 whose direction, once renormalised (as
+every PSNR here measures it, and a shader does), any error of one sample turns anywhere; the
+anchors' PSNR collapses on it (AVIF 9 to 21 dB on the rendered fandisk at 256, BENCHMARKS).
+The coder takes it (the encoder renormalises it to ``(1, 1, 1) / sqrt(3)``, a zero float vector
+to +z) without a NaN.
 
 The normals are the mesh's vertex normals interpolated across each triangle (what a baker gives
 a smooth-shaded mesh), split along edges sharper than ``crease_angle``: a CAD exporter writes
@@ -142,7 +147,7 @@ def render_normals(
     crease_angle: float = 180.0,
     supersampling: int = 4,
     margin: float = 0.04,
-    background=(0.0, 0.0, 0.0),
+    background=(0.0, 0.0, 1.0),
 ) -> np.ndarray:
     """The object-space normal map of a mesh seen along ``-view`` (see the module notes).
 
