@@ -87,3 +87,10 @@ def test_a_map_on_a_zero_background_codes_without_nan(depth):
     assert np.all(np.isfinite(decoded))
     reference = normals if not depth else array / 65535.0 * 2.0 - 1.0
     assert psnr(reference, decoded, "normal-map") > 30.0
+
+
+@pytest.mark.parametrize("keywords", [{"view": (0, 0, 0)}, {"view": (0, 1)}, {"size": 0}, {"margin": 0.5}])
+def test_bad_arguments_are_refused(keywords):
+    vertices, faces = _box()
+    with pytest.raises(ValueError):
+        render_normals(vertices, faces, **({"size": 8} | keywords))

@@ -174,9 +174,12 @@ def render_normals(
     the surface covers the whole pixel, shorter on silhouettes (averaged with ``background``).
     """
     vertices, faces = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
-    view = np.asarray(view, np.float64) / np.linalg.norm(view)
+    view = np.asarray(view, np.float64)
     if size < 1 or supersampling < 1 or not 0.0 <= margin < 0.5:
         raise ValueError("size and supersampling must be positive and margin in [0, 0.5)")
+    if view.shape != (3,) or not np.all(np.isfinite(view)) or not np.any(view):
+        raise ValueError(f"view must be a nonzero direction of 3 finite numbers, got {view.tolist()}")
+    view = view / np.linalg.norm(view)
     right, up = _frame(view)
     fine = size * supersampling
     across, along = vertices @ right, vertices @ up
