@@ -3,11 +3,13 @@
     python benchmarks/rd_defaults.py --save out/rd-defaults-main.json        # on main
     python benchmarks/rd_defaults.py --against out/rd-defaults-main.json     # on a branch
 
-(from the repository root; 3 to 8 minutes on the 2-core machine.) The maps: the generated
+(from the repository root; 4 to 10 minutes on the 2-core machine.) The maps: the generated
 crease (256 and 512), bumps (256) and bevel (256 and 512, 8-bit samples), the shared real maps
 of ``../shared/data/normal-maps`` (read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit)
 and the normal maps of the fandisk and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
-``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats); a map whose
+``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats), and the
+object-space maps rendered from them (``fandisk-top@256``, ``bunny-top@256``: 16-bit samples,
+``rd_normal_maps.py --rendered``; ``fandisk-oblique`` and 512 on request); a map whose
 file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
 ``bandelets.encode(map, bpp=B, kind="normal-map", depth=D)`` and AVIF as
 :mod:`bandelets.anchors` drives it (4:4:4, identity matrix, speed 2), every point measured
@@ -36,7 +38,7 @@ from bandelets.bitstream import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from rd_normal_maps import RATES, _capped, load, sample  # noqa: E402
+from rd_normal_maps import RATES, RENDERED, _capped, load, rendered, sample  # noqa: E402
 
 MAPS = (
     "crease@256",
@@ -48,13 +50,19 @@ MAPS = (
     "lava_flow_n",
     "fandisk",
     "bunny",
+    "fandisk-top@256",
+    "bunny-top@256",
 )
 
 
 def _maps(names, real: Path, meshes: Path):
     """``name -> (unit vectors, depth)`` of the maps ``names`` whose source is present."""
     for name in names:
-        if "@" in name:
+        if "@" in name and name.split("@")[0] in RENDERED:
+            view, size = name.split("@")
+            if (made := rendered(view, int(size), meshes)) is not None:
+                yield name, made
+        elif "@" in name:
             generated, size = name.split("@")
             yield name, sample(generated, int(size))
         elif name in ("fandisk", "bunny"):
