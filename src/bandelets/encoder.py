@@ -50,9 +50,9 @@ __all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_
 
 #: Lagrange multiplier of the choice between 0 and +-1 (:func:`bandelets.quantize.optimise_bins`),
 #: below the basis search's: its prices come from a first pass, and a coefficient dropped to 0
-#: also makes its neighbours' contexts cheaper, which they do not count. 0.7 LAMBDA gained +0.01
-#: to +0.07 dB BD-PSNR on the bevel, crease and acacia maps at 256 (-0.01 on the bumps), 0.5
-#: LAMBDA less (``benchmarks/rd_defaults.py``).
+#: also makes its neighbours' contexts cheaper, which they do not count. 0.7 LAMBDA gained +0.04
+#: to +0.05 dB BD-PSNR on the crease and bevel maps (-0.05 on the bumps, 0.00 to -0.01 on the
+#: acacia door), 0.5 LAMBDA less: BENCHMARKS, "A step per wavelet level".
 RDOQ_LAMBDA = 0.7 * LAMBDA
 
 

@@ -22,7 +22,8 @@ with ``h, w = H / 2**j, W / 2**j``.
 
 Every subband is finally multiplied by the norm of its synthesis functions, so that an
 error of ``e`` on any coefficient costs about ``e**2`` in the image for the biorthogonal
-wavelet too (the finest level's by :data:`FINEST_WEIGHT` more). The Lagrangian of the bandelet search can then work on coefficients alone.
+wavelet too (the finest level's by :data:`FINEST_WEIGHT` more). The Lagrangian of the
+bandelet search can then work on coefficients alone.
 """
 
 from __future__ import annotations
@@ -243,10 +244,10 @@ def check_extension(shape: tuple[int, int], wavelet: str, levels: int, extension
 
 #: Factor on the finest level's norms (CDF 9/7): its step is ``T / FINEST_WEIGHT``, finer than the
 #: coarser levels' (format version 13). The exact norms weigh every level's error alike, but the
-#: quantizer is not the high-rate one they assume: the finest level, almost all zeros, gained
-#: +0.03 to +0.09 dB BD-PSNR with 10/9 (bevel 256 and 512, crease and bumps 256), 0.00 on the
-#: acacia door; the other way round lost (coarser levels at 1.15 to 1.4 times their norm, so a
-#: finer step there: -0.05 to -0.24 dB on the bevel map). ``benchmarks/rd_defaults.py``.
+#: quantizer is not the high-rate one they assume: 10/9 gained +0.03 to +0.06 dB BD-PSNR on the
+#: crease map at 256 and the bevel map at 256 and 512 (-0.01 on the bumps); the other way round
+#: lost (the coarser levels at 1.15 to 1.4 times their norm, a finer step there: -0.05 to -0.24
+#: dB on the bevel map at 256). BENCHMARKS, "A step per wavelet level".
 FINEST_WEIGHT = 10.0 / 9.0
 
 
