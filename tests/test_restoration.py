@@ -255,7 +255,7 @@ def test_the_steps_images_are_float32_where_the_scale_allows(edge_image, scale, 
 
 def test_the_encoder_writes_the_fewest_iterations_that_keep_the_share(crease_map):
     """Not the best count: the first that keeps RESTORATION_SHARE of the best gain (the best one
-    only where the gain rises that steeply to its peak, as on this map since format version 13)."""
+    only where the gain rises that steeply to its peak, as on this map since format version 12)."""
     data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map", restore=False)
     header, streams = unpack(data)
     trees, quantized, lifting = decoder.decoded_bins(header, streams)

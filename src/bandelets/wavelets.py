@@ -243,7 +243,7 @@ def check_extension(shape: tuple[int, int], wavelet: str, levels: int, extension
 
 
 #: Factor on the finest level's norms (CDF 9/7): its step is ``T / FINEST_WEIGHT``, finer than the
-#: coarser levels' (format version 13). The exact norms weigh every level's error alike, but the
+#: coarser levels' (format version 12). The exact norms weigh every level's error alike, but the
 #: quantizer is not the high-rate one they assume: 10/9 gained +0.03 to +0.06 dB BD-PSNR on the
 #: crease map at 256 and the bevel map at 256 and 512 (-0.01 on the bumps); the other way round
 #: lost (the coarser levels at 1.15 to 1.4 times their norm, a finer step there: -0.05 to -0.24
