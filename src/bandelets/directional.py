@@ -418,22 +418,39 @@ def lift(channels, levels: int, lifting: int, threshold: float):
         The :func:`cost` of the coefficients, where it was needed (None: no block took a pair code).
     """
     deeper = min(lifting + DEEPER, levels, MAX_LIFTING)
-    channels = [np.array(x, dtype=np.float64, order="C") for x in channels]
+    # Not copied (each analysis copies its input), and at most two sets of coefficients held at
+    # once besides the analysis running: the peak of a 2048 x 2048 encode (1 GiB target).
+    channels = [np.ascontiguousarray(x, dtype=np.float64) for x in channels]
     first = first_costs(channels, threshold)  # the first pass reads the channels in both analyses
     deep, deep_fields = analysis(channels, levels, deeper, threshold=threshold, first=first)
     # The finer levels' directions are those of an analysis of ``lifting`` levels.
     fields = deep_fields[: 2 * lifting]
-    lifted = analysis(channels, levels, lifting, fields)[0] if deeper > lifting else deep
     if not any(np.any(f >= len(SLOPES_97)) for f in deep_fields):
-        return lifted, fields, lifting, None
+        if deeper > lifting:
+            del deep
+            deep = analysis(channels, levels, lifting, fields)[0]
+        return deep, fields, lifting, None
+    # The candidates, in order (the first of equal costs kept): the slopes alone, the pair codes
+    # at ``lifting`` levels, at ``deeper`` levels; a pair candidate only below PAIRS_PAY_BELOW.
+    deep_cost = cost(channels, deep, deep_fields, levels, deeper, threshold) if deeper > lifting else None
+    if deep_cost is None:  # ``deep`` is the pair codes at ``lifting`` levels: no third candidate
+        lifted, deep = deep, None
     slopes = analysis(channels, levels, lifting, threshold=threshold, pairs=False, first=first)
     without = cost(channels, *slopes, levels, lifting, threshold)
     best = (*slopes, lifting, without)
-    candidates = [(lifted, fields, lifting)] if any(np.any(f >= len(SLOPES_97)) for f in fields) else []
-    if deeper > lifting:
-        candidates.append((deep, deep_fields, deeper))
-    for coefficients, chosen, count in candidates:
-        estimate = cost(channels, coefficients, chosen, levels, count, threshold)
-        if estimate < PAIRS_PAY_BELOW * without and estimate < best[3]:
-            best = (coefficients, chosen, count, estimate)
+    del slopes
+    if deep is not None and not deep_cost < PAIRS_PAY_BELOW * without:
+        deep = None  # it cannot be kept: the slopes' set is the only one held
+    elif deep is not None:
+        # ``deep`` beats the slopes alone: only the pair codes at ``lifting`` levels may beat it.
+        best = (deep, deep_fields, deeper, deep_cost)
+        del deep
+    if any(np.any(f >= len(SLOPES_97)) for f in fields):
+        if deep_cost is not None:
+            lifted = analysis(channels, levels, lifting, fields)[0]
+        estimate = cost(channels, lifted, fields, levels, lifting, threshold)
+        # Kept over the slopes alone when below both, over the deeper when not above it.
+        beaten = estimate < best[3] or (best[2] == deeper > lifting and estimate == best[3])
+        if estimate < PAIRS_PAY_BELOW * without and estimate < without and beaten:
+            best = (lifted, fields, lifting, estimate)
     return best
