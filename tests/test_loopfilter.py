@@ -78,6 +78,19 @@ def test_filter_shapes_count_their_taps():
     assert [filter_taps(radius, 0, 1, square=True) for radius in (1, 2, 3)] == [4, 12, 24]
 
 
+def test_a_large_image_is_filtered_in_bands_of_rows_as_in_one(monkeypatch):
+    """Above ``THREADED_PIXELS`` the rows are filtered in bands, in threads: the same numbers."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(2, 300, 260))
+    f = LoopFilter(
+        radius=3, cross=2, square=True, clip=2, shift=6, coefficients=tuple(rng.integers(-40, 40, 2 * 36))
+    )
+    monkeypatch.setattr(loopfilter, "_CORES", 3)
+    banded = loopfilter.apply(x, f, 0.5, 300, 260)
+    monkeypatch.setattr(loopfilter, "THREADED_PIXELS", 10**9)
+    np.testing.assert_array_equal(banded, loopfilter.apply(x, f, 0.5, 300, 260))
+
+
 @pytest.mark.parametrize(
     ("radius", "cross", "square", "clip"), [(2, 0, False, 0), (3, 1, False, 3), (3, 2, True, 2)]
 )

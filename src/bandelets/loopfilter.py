@@ -51,8 +51,11 @@ numpy's solve.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
+from itertools import pairwise
 
 import numpy as np
 from numba import njit
@@ -200,10 +203,10 @@ _BLOCK = 2**13
 
 
 @njit(cache=True, nogil=True)
-def _apply(x, table, weights, bound, out):
-    """``out[c] = x[c] + sum_t weights[c, t] feature_t`` (float64), the taps in the order of
-    ``table`` (:func:`_feature`): inside, from an edge-padded copy, tap by tap along each row (loops
-    the compiler vectorises), on the border pixel by pixel; the same numbers either way."""
+def _apply(x, table, weights, bound, out, first, last):
+    """``out[c] = x[c] + sum_t weights[c, t] feature_t`` (float64) over the rows ``first`` to
+    ``last``, the taps in the order of ``table`` (:func:`_feature`): inside, tap by tap along each
+    row (loops the compiler vectorises), on the border pixel by pixel; the same numbers either way."""
     channels, rows, cols = x.shape
     n = table.shape[0]
     r = 0
@@ -211,7 +214,7 @@ def _apply(x, table, weights, bound, out):
         r = max(r, abs(table[t, 1]), abs(table[t, 2]))
     s = np.empty(cols)
     for c in range(channels):
-        for i in range(rows):
+        for i in range(first, last):
             inside = r <= i < rows - r
             if inside:
                 s[:] = 0.0
@@ -248,8 +251,22 @@ def apply(
     table = _table(loop_filter.radius, loop_filter.cross, loop_filter.square, x.shape[0])
     weights = np.array(loop_filter.coefficients, np.float64).reshape(x.shape[0], -1) / 2.0**loop_filter.shift
     out = np.empty_like(x)
-    _apply(x, table, weights, clip_bound(loop_filter.clip, threshold), out)
+    bound, rows = clip_bound(loop_filter.clip, threshold), x.shape[1]
+    if _CORES == 1 or rows * x.shape[2] < THREADED_PIXELS:
+        _apply(x, table, weights, bound, out, 0, rows)
+        return out
+    # Bands of rows in threads (the kernel releases the GIL; every pixel is computed on its own).
+    edges = np.linspace(0, rows, min(_CORES, 8) + 1).astype(int)
+    with ThreadPoolExecutor(len(edges) - 1, thread_name_prefix="bandelets-loop-filter") as pool:
+        for done in [pool.submit(_apply, x, table, weights, bound, out, a, b) for a, b in pairwise(edges)]:
+            done.result()
     return out
+
+
+#: Pixels of a channel from which :func:`apply` filters bands of rows in threads: at 2048 x 2048
+#: with the 7 x 7 square and the other channel's 5 x 5, 0.56 s in one thread (2-core machine).
+THREADED_PIXELS = 256 * 256
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def clip_bound(code: int, threshold: float) -> float:
