@@ -152,3 +152,20 @@ def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
     # Longer than pi (decoded noise): the vector stops at -z rather than wrap around.
     beyond = unit_normals(np.array([[[4.0]], [[0.0]]]), 1, 1, equidistant=True)
     np.testing.assert_allclose(beyond[0, 0], [0.0, 0.0, -1.0], atol=1e-15)
+
+
+def test_the_encoders_measure_sums_two_halves_of_a_large_map_as_one(monkeypatch):
+    """Above ``THREADED_PIXELS`` the measure of a normal map sums the halves of its rows in two
+    threads: the PSNR of the whole, as in one pass (to the last bits of the sum's order)."""
+    from bandelets import metrics, normalmaps
+
+    rng = np.random.default_rng(3)
+    reference = unit_vectors(rng.normal(size=(300, 280, 3)) + [0.0, 0.0, 4.0])
+    decoded = normalmaps.equidistant(unit_vectors(reference + rng.normal(scale=0.01, size=reference.shape)))
+    channels = np.ascontiguousarray(np.moveaxis(decoded, -1, 0))
+    monkeypatch.setattr(metrics, "_CORES", 2)
+    halves = metrics.psnr_of_channels(reference, "normal-map", 8, equidistant=True)(channels)
+    monkeypatch.setattr(metrics, "THREADED_PIXELS", 10**9)
+    whole = metrics.psnr_of_channels(reference, "normal-map", 8, equidistant=True)(channels)
+    assert 20.0 < whole < 80.0
+    assert halves == pytest.approx(whole, abs=1e-9)

@@ -6,7 +6,9 @@ with its source.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
@@ -228,7 +230,14 @@ def psnr_of_channels(
 
     def measure(channels: np.ndarray) -> float:
         channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
-        sse = _normal_map_sse(planes, channels, 2**depth - 1 if depth else 0, equidistant)
+        args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
+        rows = planes.shape[1]
+        if _CORES == 1 or planes[0].size < THREADED_PIXELS:
+            sse = _normal_map_sse(*args, 0, rows)
+        else:  # the two halves of the rows in two threads (the kernel releases the GIL)
+            with ThreadPoolExecutor(1, thread_name_prefix="bandelets-measure") as pool:
+                second = pool.submit(_normal_map_sse, *args, rows // 2, rows)
+                sse = _normal_map_sse(*args, 0, rows // 2) + second.result()
         rmse = float(np.sqrt(sse / samples))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
@@ -257,14 +266,22 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
         errors[j] = (r0[j] - a) ** 2 + (r1[j] - b) ** 2 + (r2[j] - c) ** 2
 
 
+#: Pixels from which the encoder's measure of a normal map (:func:`psnr_of_channels`) sums the
+#: two halves of the rows in two threads: it measures every restoration iteration, 0.13 s of a
+#: 512 x 512 encode in one thread (2-core machine).
+THREADED_PIXELS = 256 * 256
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 @njit(cache=True, nogil=True)
-def _normal_map_sse(planes, channels, top, equidistant):
+def _normal_map_sse(planes, channels, top, equidistant, first, last):
     """Squared error of the unit vectors of ``channels`` (2: :func:`_hemisphere`), as samples of ``top + 1``
-    levels (0: floats), against the reference ``planes`` (3, H, W), summed in raster order."""
-    rows, cols = planes.shape[1:]
+    levels (0: floats), against the reference ``planes`` (3, H, W), over the rows ``first`` to
+    ``last``, summed in raster order."""
+    cols = planes.shape[2]
     errors = np.empty(cols)
     sse = 0.0
-    for i in range(rows):
+    for i in range(first, last):
         # One call per case: the compiler drops the unused branch from each loop.
         if channels.shape[0] == 2:
             x, y = channels[0, i, :cols], channels[1, i, :cols]
