@@ -85,7 +85,7 @@ def test_a_large_image_is_filtered_in_bands_of_rows_as_in_one(monkeypatch):
     f = LoopFilter(
         radius=3, cross=2, square=True, clip=2, shift=6, coefficients=tuple(rng.integers(-40, 40, 2 * 36))
     )
-    monkeypatch.setattr(loopfilter, "_CORES", 3)
+    monkeypatch.setattr(loopfilter, "CORES", 3)
     banded = loopfilter.apply(x, f, 0.5, 300, 260)
     monkeypatch.setattr(loopfilter, "THREADED_PIXELS", 10**9)
     np.testing.assert_array_equal(banded, loopfilter.apply(x, f, 0.5, 300, 260))

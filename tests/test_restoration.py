@@ -74,7 +74,7 @@ def test_the_gradient_in_two_threads_is_the_same_numbers(rng, monkeypatch, shape
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 2**62)
     whole = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2)
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 0)
-    monkeypatch.setattr(restoration, "_CORES", 2)
+    monkeypatch.setattr(restoration, "CORES", 2)
     halves = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2)
     assert np.array_equal(whole, halves)
 

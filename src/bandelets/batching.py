@@ -46,6 +46,7 @@ from .files import SUFFIXES, image_shape, read_array, write_atomic
 from .memory import decoder_memory, encoder_memory, tile_side
 from .metrics import angular_error, bits_per_pixel, psnr
 from .rd import MESH_SUFFIXES
+from .restoration import CORES
 from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
 from .surfaces.metrics import hausdorff_psnr
 
@@ -526,7 +527,7 @@ def _client(client, scheduler: str | None, workers: int | None, need: int):
         with Client(scheduler, timeout="10s") as remote:
             yield remote
         return
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    cores = CORES
     total = psutil.virtual_memory().total
     # Dask pauses a worker at 80 % of its limit and restarts it at 95 %: the estimate stays below.
     limit = min(total, int((_WORKER_BASE + need) / 0.8))

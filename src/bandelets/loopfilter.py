@@ -51,7 +51,6 @@ numpy's solve.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
@@ -69,6 +68,7 @@ from .bitstream import (
     filter_taps,
     filter_width,
 )
+from .restoration import CORES
 
 __all__ = [
     "SHAPES",
@@ -252,11 +252,11 @@ def apply(
     weights = np.array(loop_filter.coefficients, np.float64).reshape(x.shape[0], -1) / 2.0**loop_filter.shift
     out = np.empty_like(x)
     bound, rows = clip_bound(loop_filter.clip, threshold), x.shape[1]
-    if _CORES == 1 or rows * x.shape[2] < THREADED_PIXELS:
+    if CORES == 1 or rows * x.shape[2] < THREADED_PIXELS:
         _apply(x, table, weights, bound, out, 0, rows)
         return out
     # Bands of rows in threads (the kernel releases the GIL; every pixel is computed on its own).
-    edges = np.linspace(0, rows, min(_CORES, 8) + 1).astype(int)
+    edges = np.linspace(0, rows, min(CORES, 8) + 1).astype(int)
     with ThreadPoolExecutor(len(edges) - 1, thread_name_prefix="bandelets-loop-filter") as pool:
         for done in [pool.submit(_apply, x, table, weights, bound, out, a, b) for a, b in pairwise(edges)]:
             done.result()
@@ -266,7 +266,6 @@ def apply(
 #: Pixels of a channel from which :func:`apply` filters bands of rows in threads: at 2048 x 2048
 #: with the 7 x 7 square and the other channel's 5 x 5, 0.56 s in one thread (2-core machine).
 THREADED_PIXELS = 256 * 256
-_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def clip_bound(code: int, threshold: float) -> float:

@@ -6,7 +6,6 @@ with its source.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
@@ -15,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from .files import as_read
+from .restoration import CORES
 
 __all__ = [
     "AngularError",
@@ -232,7 +232,7 @@ def psnr_of_channels(
         channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
         rows = planes.shape[1]
-        if _CORES == 1 or planes[0].size < THREADED_PIXELS:
+        if CORES == 1 or planes[0].size < THREADED_PIXELS:
             sse = _normal_map_sse(*args, 0, rows)
         else:  # the two halves of the rows in two threads (the kernel releases the GIL)
             with ThreadPoolExecutor(1, thread_name_prefix="bandelets-measure") as pool:
@@ -270,7 +270,6 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
 #: two halves of the rows in two threads: it measures every restoration iteration, 0.13 s of a
 #: 512 x 512 encode in one thread (2-core machine).
 THREADED_PIXELS = 256 * 256
-_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 @njit(cache=True, nogil=True)

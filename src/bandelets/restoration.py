@@ -126,7 +126,8 @@ _SHORTEST = 1e-6
 #: in two threads: with format version 9's kernel at 128^2 x 3 already 0.29 ms against 0.36 in one,
 #: at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
-_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+#: Cores this process may run on (its CPU affinity): the kernels that split their rows in threads ask.
+CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 if hasattr(os, "register_at_fork"):  # a forked child has the pool but not its thread: a new one
@@ -190,7 +191,7 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) 
     real = x.dtype.type
     args = (x, real(1.0 / smoothing), real(_LARGEST), *scaled, real(step), out, previous, real(weight))
     args = (*args, int(unit_rows), int(unit_cols))
-    if rows * cols < THREADED_SAMPLES or rows < 8 or _CORES < 2:
+    if rows * cols < THREADED_SAMPLES or rows < 8 or CORES < 2:
         _rows(*args, 0, rows)
         return
     half = rows // 2
