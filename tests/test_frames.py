@@ -109,6 +109,34 @@ def test_the_details_of_a_normal_map_are_nearly_tangent():
         np.testing.assert_allclose(b, c, rtol=0, atol=1e-12)
 
 
+def test_the_first_tangent_follows_a_crease():
+    """At an oblique crease between two flat facets, the frames' first tangent
+    turns from one facet's normal towards the other's: the details there fill one tangential
+    channel and leave the other nearly empty (with the x axis projected they fill both)."""
+    side, levels = 64, 3
+    a, b = np.array([0.0, 0.6, 0.8]), np.array([0.6, 0.0, 0.8])  # they differ at 45 degrees to x
+    y, x = np.mgrid[0:side, 0:side]
+    ramp = np.clip((x - 0.6 * y - 12.0) / 4.0, 0.0, 1.0)[..., None]  # a few pixels wide
+    normals = metrics.unit_vectors((1 - ramp) * a + ramp * b)
+    coefficients = [wavedec(normals[..., k], "cdf97", levels) for k in range(3)]
+    frame = frames.level_frames(coefficients, 1, "cdf97", levels, "symmetric", "normal-map")
+    n = frame[..., 0, :]
+    near = np.minimum(np.linalg.norm(n - a, axis=-1), np.linalg.norm(n - b, axis=-1)) > 0.05
+    assert near.sum() > 20  # the places whose coarse normal lies between the facets'
+    across = (b - a) - np.sum((b - a) * frame[..., 0, :], axis=-1, keepdims=True) * frame[..., 0, :]
+    cosine = np.abs(np.sum(across * frame[..., 1, :], axis=-1)) / np.linalg.norm(across, axis=-1)
+    assert np.min(cosine[near]) > 0.99
+    energies = []
+    for aligned in (True, False):
+        local = [c.copy() for c in coefficients]
+        f = frame if aligned else frames.normal_map_frames(frame[..., 0, :])
+        frames.rotate(local, f, 1, levels, 1.0, local=True)
+        finest = [c[side // 2 :, side // 2 :] for c in local]
+        energies.append([np.sum(c**2) for c in finest])
+    (_, first, second), (_, x_first, x_second) = energies
+    assert second < 0.01 * first and min(x_first, x_second) > 0.05 * (x_first + x_second)
+
+
 def test_normal_maps_of_three_channels_are_coded_in_local_frames():
     normals = _sphere_normals(64)
     data = bandelets.encode(normals, bpp=1.0, kind="normal-map")

@@ -65,8 +65,10 @@ meaning), a normal map's channels are the stored ones (3, or 2 of layout ``xy``)
 the source's values, not renormalised. Version 12 also adds two lifting codes, 13 and 14, that
 lift each pair of samples of a block on its own (:data:`bandelets.directional.PAIR_BEFORE`,
 :data:`bandelets.directional.PAIR_AFTER`) and quantizes the finest wavelet level with a finer
-step, ``T / FINEST_WEIGHT`` (:data:`bandelets.wavelets.FINEST_WEIGHT`). This build reads version
-12 only.
+step, ``T / FINEST_WEIGHT`` (:data:`bandelets.wavelets.FINEST_WEIGHT`). Version 13 turns the
+first tangent of a normal map's local frames towards the direction along which its coarse normals
+turn most (:func:`bandelets.frames.normal_map_frames`), not the x axis projected. This build reads
+version 13 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
@@ -170,7 +172,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 12
+FORMAT_VERSION = 13
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
