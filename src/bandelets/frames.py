@@ -146,16 +146,17 @@ def _turning(normal: np.ndarray, start: np.ndarray, du: np.ndarray, dv: np.ndarr
 
     Written with elementwise products, not einsum, so that every platform sums in one order."""
     du, dv = _along(du, normal), _along(dv, normal)
-    # The tensor du du^T + dv dv^T, as its 9 entries, averaged over the 3 x 3 neighbours.
-    entries = [du[..., i] * du[..., j] + dv[..., i] * dv[..., j] for i in range(3) for j in range(3)]
+    # The symmetric tensor du du^T + dv dv^T (its 6 entries), averaged over the 3 x 3 neighbours.
+    pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
     h, w = normal.shape[:2]
-    tensor = []
-    for e in entries:
-        padded = np.pad(e, 1, mode="edge")
-        tensor.append(sum(padded[a : a + h, b : b + w] for a in range(3) for b in range(3)) / 9.0)
+    averaged = {}
+    for i, j in pairs:
+        padded = np.pad(du[..., i] * du[..., j] + dv[..., i] * dv[..., j], 1, mode="edge")
+        rows = padded[:h] + padded[1 : h + 1] + padded[2 : h + 2]
+        averaged[i, j] = averaged[j, i] = (rows[:, :w] + rows[:, 1 : w + 1] + rows[:, 2 : w + 2]) / 9.0
     tangent = start
     for _ in range(_TURNING_STEPS):
-        turned = np.stack([sum(tensor[3 * i + j] * tangent[..., j] for j in range(3)) for i in range(3)], -1)
+        turned = np.stack([sum(averaged[i, j] * tangent[..., j] for j in range(3)) for i in range(3)], -1)
         tangent = _along(turned, normal) + TURNING_FLOOR * tangent
         tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
     return tangent
