@@ -122,9 +122,7 @@ def normal_map_frames(
         ``[..., 2, :]`` their cross product. The tangents turn smoothly with the normals, so
         that the tangential details stay as sparse as the normals are smooth.
     """
-    length = np.linalg.norm(normals, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        normal = np.where(length > _DEGENERATE, normals / length, (0.0, 0.0, 1.0))
+    normal = _unit(normals)
     # An axis minus its component along the normal.
     tx = (1.0, 0.0, 0.0) - normal[..., 0:1] * normal
     ty = (0.0, 1.0, 0.0) - normal[..., 1:2] * normal
@@ -136,6 +134,13 @@ def normal_map_frames(
     return np.stack([normal, tangent, np.cross(normal, tangent)], axis=-2)
 
 
+def _unit(v: np.ndarray) -> np.ndarray:
+    """The unit vectors of ``v`` (..., 3), z where a vector is 0."""
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(length > _DEGENERATE, v / length, (0.0, 0.0, 1.0))
+
+
 def _along(v: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """``v`` (..., 3) less its component along the unit ``normal``."""
     return v - np.sum(v * normal, axis=-1, keepdims=True) * normal
@@ -145,7 +150,11 @@ def _turning(normal: np.ndarray, start: np.ndarray, du: np.ndarray, dv: np.ndarr
     """The unit tangents of :func:`normal_map_frames` with ``du, dv`` (all shape (H, W, 3)).
 
     Written with elementwise products, not einsum, so that every platform sums in one order."""
-    du, dv = _along(du, normal), _along(dv, normal)
+    with np.errstate(under="ignore"):  # a product below the smallest float is 0 alike
+        return _turned(normal, start, _along(du, normal), _along(dv, normal))
+
+
+def _turned(normal: np.ndarray, start: np.ndarray, du: np.ndarray, dv: np.ndarray) -> np.ndarray:
     # The symmetric tensor du du^T + dv dv^T (its 6 entries), averaged over the 3 x 3 neighbours.
     pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
     h, w = normal.shape[:2]
@@ -202,8 +211,9 @@ def level_frames(
         step = 1 << (level - 1)
         right, left = np.minimum(cols + step, shape[1] - 1), np.maximum(cols - step, 0)
         down, up = np.minimum(rows + step, shape[0] - 1), np.maximum(rows - step, 0)
-        du = surface[np.ix_(rows, right)] - surface[np.ix_(rows, left)]
-        dv = surface[np.ix_(down, cols)] - surface[np.ix_(up, cols)]
+        # Of unit vectors: bounded whatever a file holds.
+        du = _unit(surface[np.ix_(rows, right)]) - _unit(surface[np.ix_(rows, left)])
+        dv = _unit(surface[np.ix_(down, cols)]) - _unit(surface[np.ix_(up, cols)])
         return normal_map_frames(surface[np.ix_(rows, cols)], du, dv)
     # Differences of the neighbouring pixels (one-sided on the border); only their
     # directions matter.
