@@ -35,9 +35,9 @@ most around that place (format version 13): at a crease between two facets the d
 normals all point one way in the tangent plane (from one facet's normal to the other's), so that
 one tangential channel holds them and the other is left nearly empty, much as AV1 predicts its
 chroma from its luma. The decoder finds the same direction in what it has decoded before, so it
-costs no bits. On the normal maps of fandisk and bunny at 256 (0.25 to 2 bpp) this gained +0.2 to
-+0.8 dB and +0.1 to +0.2 dB over the x axis projected on the tangent plane (BENCHMARKS, "Frames
-along the crease").
+costs no bits. Over the x axis projected on the tangent plane it gained +0.37 dB BD-PSNR on
+fandisk's normal map at 256 (+0.1 dB at 0.25 bpp to +0.75 at 2 bpp) and +0.11 dB on bunny's, at
+512 +0.57 and +0.22 dB (BENCHMARKS, "Frames along the crease").
 """
 
 from __future__ import annotations
@@ -63,8 +63,8 @@ _DEGENERATE = 1e-9
 _NEAR_AXIS = 1e-3
 #: Where the coarse normals hardly turn, a normal map's tangent stays near the x axis projected on
 #: the tangent plane: this is added to its turning (squared differences of unit vectors) at each
-#: step of :func:`normal_map_frames` (1e-4 and 1e-3 measured alike on fandisk, 1e-2 lost 0.1 to
-#: 0.2 dB).
+#: step of :func:`normal_map_frames` (1e-4 and 1e-3 measured alike on fandisk and bunny, 3e-3 lost
+#: 0.05 dB BD-PSNR on fandisk, 1e-2 0.1 to 0.2 dB).
 TURNING_FLOOR = 1e-3
 #: Power iteration steps towards the direction of largest turning.
 _TURNING_STEPS = 2
