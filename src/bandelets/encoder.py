@@ -39,6 +39,7 @@ from .decoder import decode, decoded_bins, decoded_image, restorations
 from .files import as_read, to_samples
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
+from .levelchoice import choose_levels
 from .memory import check_encodable, check_memory, restoration_work
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_targets, geometry_options
 from .progress import Progress
@@ -428,6 +429,18 @@ def encode_with_stats(
     # A rate target's model keeps a sample of the magnitudes, not all of them.
     model = ratecontrol.size_model(magnitudes) if bpp is not None else None
     del magnitudes
+    if two and options.wavelet == "cdf97" and (bpp is not None or threshold is not None):
+        # Fewer levels where the median predictor codes the coarse band for less (levelchoice).
+        t = (
+            float(threshold)
+            if bpp is None
+            else ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
+        )
+        if (fewer := choose_levels(coded, options.wavelet, levels, t)) < levels:
+            levels, lifting_levels = fewer, _lifting_levels(options, fewer, geometry)
+            coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
+            if model is not None:
+                model = ratecontrol.size_model(np.abs(np.concatenate([c.ravel() for c in coefficients])))
     reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     del x
     measure_channels = targets = to_error = None
