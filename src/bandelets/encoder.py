@@ -436,7 +436,7 @@ def encode_with_stats(
             if bpp is None
             else ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
         )
-        if (fewer := choose_levels(coded, options.wavelet, levels, t)) < levels:
+        if (fewer := choose_levels(coefficients, levels, t)) < levels:
             levels, lifting_levels = fewer, _lifting_levels(options, fewer, geometry)
             coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
             if model is not None:

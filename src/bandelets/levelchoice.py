@@ -8,13 +8,13 @@ coarse approximation for less than the CDF 9/7 levels that would split it furthe
 synthesis functions also spread each edge's quantization error far around it: stopping at 2
 levels gained +1.76 dB BD-PSNR on the fandisk rendered from the top and +0.62 on the bevel map at
 256, while the smooth bumps map lost 2.7 dB (BENCHMARKS, "Fewer levels where the median predictor
-codes the coarse band for less"). So the encoder tries every count of levels from
-:data:`MIN_LEVELS` up, on the part of the image they differ on: the approximation of
-:data:`MIN_LEVELS` levels, coded as it is, or split by each further level as the codec would code
-it; each priced by the coefficient coder itself (its ideal code length) and the quantization
+codes the coarse band for less"). So the encoder tries the counts of :data:`CANDIDATES` against
+all the levels, on the part of the image they differ on: the approximation of
+:data:`MIN_LEVELS` levels, coded as it is, or split by further levels as the codec would code
+it (:func:`bandelets.wavelets.coarse_blocks`); each priced by the coefficient coder itself (its ideal code length) and the quantization
 error, ``error + LAMBDA T**2 bits``, and the cheapest kept where it saves enough
-(:data:`PAYS_BELOW`). That part is a sixteenth of the
-image or less: its coding costs a few percent of an encoding.
+(:data:`PAYS_BELOW`). That part is a sixteenth of the image: about 20 ms at 512 x 512, 2 % of an
+encoding.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from .bitstream import Header
 from .coding import code_image, new_coders
 from .lagrangian import LAMBDA
 from .quantize import dequantize, quantize
-from .transform import wavelet_coefficients
+from .wavelets import coarse_blocks
 
-__all__ = ["MIN_LEVELS", "PAYS_BELOW", "choose_levels"]
+__all__ = ["CANDIDATES", "MIN_LEVELS", "PAYS_BELOW", "choose_levels"]
 
 #: Fewest levels the encoder chooses: one level lost 1.9 dB BD-PSNR against the default on the
 #: fandisk rendered from the top, where two gained 1.8.
@@ -37,20 +37,21 @@ MIN_LEVELS = 2
 #: levels above them (the crease map at 2 bpp: 0.87 estimated, yet 2.6 dB lost with 2 levels),
 #: and the fandisk and bevel maps, which gained, came out at 0.70 to 0.83.
 PAYS_BELOW = 0.85
+#: The counts tried besides all the levels (the files that gained took 2 or 3; each count tried
+#: costs about 8 ms at 512 x 512).
+CANDIDATES = (MIN_LEVELS, MIN_LEVELS + 1)
 
 
-def choose_levels(coded: np.ndarray, wavelet: str, levels: int, threshold: float) -> int:
-    """The count of wavelet levels, from :data:`MIN_LEVELS` to ``levels``, whose coarse part codes
-    for the least ``error + LAMBDA T**2 bits`` at ``threshold``.
+def choose_levels(coefficients: list[np.ndarray], levels: int, threshold: float) -> int:
+    """The count of CDF 9/7 levels, of :data:`CANDIDATES` and ``levels``, whose coarse part codes
+    for the least ``error + LAMBDA T**2 bits`` at ``threshold``, where that saves enough.
 
     Parameters
     ----------
-    coded : ndarray, shape (H, W, C)
-        The channels the codec transforms (symmetric extension).
-    wavelet : str
-        Their wavelet (a name of :data:`bandelets.bitstream.WAVELETS`).
+    coefficients : list of ndarray, shape (H, W)
+        The coefficients of every channel with ``levels`` levels
+        (:func:`bandelets.transform.wavelet_coefficients`, cdf97, symmetric extension).
     levels : int
-        The most levels (:func:`bandelets.wavelets.max_levels`).
     threshold : float
         The quantization threshold ``T`` expected.
 
@@ -60,27 +61,24 @@ def choose_levels(coded: np.ndarray, wavelet: str, levels: int, threshold: float
     """
     if levels <= MIN_LEVELS:
         return levels
-    costs = {}
-    for candidate in range(MIN_LEVELS, levels + 1):
-        total = 0.0
-        for c in wavelet_coefficients(coded, wavelet, candidate):
-            # The approximation of MIN_LEVELS levels, split candidate - MIN_LEVELS times more.
-            h, w = c.shape[0] >> MIN_LEVELS, c.shape[1] >> MIN_LEVELS
-            block = c[:h, :w]
+    costs = dict.fromkeys(CANDIDATES + (levels,), 0.0)
+    for c in coefficients:
+        for candidate, block in coarse_blocks(c, levels, MIN_LEVELS).items():
+            if candidate not in costs:
+                continue
             q = quantize(block, threshold)
             header = Header(
-                height=h,
-                width=w,
+                height=block.shape[0],
+                width=block.shape[1],
                 channels=1,
                 kind="normal-map",
                 transform="wavelet",
-                wavelet=wavelet,
+                wavelet="cdf97",
                 levels=candidate - MIN_LEVELS,
                 threshold=threshold,
             )
             _, _, spent = code_image(new_coders(), header, None, [q.ravel()])
             error = float(np.sum((block - dequantize(q, threshold)) ** 2))
-            total += error + LAMBDA * threshold**2 * float(spent[0].sum())
-        costs[candidate] = total
+            costs[candidate] += error + LAMBDA * threshold**2 * float(spent[0].sum())
     fewer = [candidate for candidate in costs if costs[candidate] < PAYS_BELOW * costs[levels]]
     return min(fewer, key=costs.get) if fewer else levels

@@ -40,6 +40,7 @@ from .bitstream import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
 
 __all__ = [
     "check_extension",
+    "coarse_blocks",
     "spherical_folds",
     "subband_norms",
     "subband_slices",
@@ -346,6 +347,43 @@ def waverec(
     check_extension(c.shape, wavelet, levels, extension)
     c = _normalise(_working_copy(c, out), wavelet, levels, inverse=True)
     return _raw_rec(c, wavelet, levels, extension)
+
+
+def coarse_blocks(c: np.ndarray, levels: int, first: int) -> dict[int, np.ndarray]:
+    """The coarse part of a channel at every count of levels, from its CDF 9/7 coefficients.
+
+    Parameters
+    ----------
+    c : ndarray, shape (H, W)
+        ``wavedec(x, "cdf97", levels)`` of a channel ``x`` (symmetric extension).
+    levels : int
+    first : int
+        From 1 to ``levels``.
+
+    Returns
+    -------
+    dict
+        ``L -> wavedec(x, "cdf97", L)[:H >> first, :W >> first]`` for ``L`` from ``first`` to
+        ``levels`` (the approximation of ``first`` levels, split ``L - first`` times more),
+        made from that block alone: the channel is not transformed again.
+    """
+    h, w = c.shape[0] >> first, c.shape[1] >> first
+
+    def scale(block: np.ndarray, total: int, inverse: bool) -> np.ndarray:
+        norms = np.array(subband_norms("cdf97", total)[: 1 + 3 * (total - first)])
+        if total == first:  # the approximation alone
+            return block / norms[0] if inverse else block * norms[0]
+        lifting.scale_subbands(block, total - first, norms, inverse)
+        return block
+
+    raw = _raw_rec(
+        scale(np.array(c[:h, :w], np.float64, order="C"), levels, True), "cdf97", levels - first, "symmetric"
+    )
+    out = {}
+    for total in range(first, levels + 1):
+        block = _raw_dec(raw.copy(), "cdf97", total - first, "symmetric")
+        out[total] = scale(block, total, False)
+    return out
 
 
 def _working_copy(x: np.ndarray, out: np.ndarray | None) -> np.ndarray:
