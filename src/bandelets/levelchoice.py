@@ -9,12 +9,12 @@ synthesis functions also spread each edge's quantization error far around it: st
 levels gained +1.76 dB BD-PSNR on the fandisk rendered from the top and +0.62 on the bevel map at
 256, while the smooth bumps map lost 2.7 dB (BENCHMARKS, "Fewer levels where the median predictor
 codes the coarse band for less"). So the encoder tries the counts of :data:`CANDIDATES` against
-all the levels, on the part of the image they differ on: the approximation of
-:data:`MIN_LEVELS` levels, coded as it is, or split by further levels as the codec would code
-it (:func:`bandelets.wavelets.coarse_blocks`); each priced by the coefficient coder itself (its ideal code length) and the quantization
-error, ``error + LAMBDA T**2 bits``, and the cheapest kept where it saves enough
-(:data:`PAYS_BELOW`). That part is a sixteenth of the image: about 20 ms at 512 x 512, 2 % of an
-encoding.
+all the levels, on the part of the image they differ on: the approximation of :data:`MIN_LEVELS`
+levels, coded as it is, or split by further levels as the codec would code it
+(:func:`bandelets.wavelets.coarse_blocks`); each priced by the coefficient coder itself (its ideal
+code length) and the quantization error, ``error + LAMBDA T**2 bits``, and the cheapest kept
+where it saves enough (:data:`PAYS_BELOW`). That part is a sixteenth of the image: about 20 ms at
+512 x 512, 2 % of an encoding.
 """
 
 from __future__ import annotations
