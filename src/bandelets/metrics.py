@@ -7,14 +7,13 @@ with its source.
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from .files import as_read
-from .restoration import CORES
+from .restoration import CORES, workers
 
 __all__ = [
     "AngularError",
@@ -229,15 +228,16 @@ def psnr_of_channels(
     del reference
 
     def measure(channels: np.ndarray) -> float:
-        channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
+        # float32 restored channels are read as float64, as decode makes them (no copy).
+        if channels.dtype not in (np.float32, np.float64):
+            channels = np.asarray(channels, np.float64)
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
         rows = planes.shape[1]
         if CORES == 1 or planes[0].size < THREADED_PIXELS:
             sse = _normal_map_sse(*args, 0, rows)
         else:  # the two halves of the rows in two threads (the kernel releases the GIL)
-            with ThreadPoolExecutor(1, thread_name_prefix="bandelets-measure") as pool:
-                second = pool.submit(_normal_map_sse, *args, rows // 2, rows)
-                sse = _normal_map_sse(*args, 0, rows // 2) + second.result()
+            second = workers().submit(_normal_map_sse, *args, rows // 2, rows)
+            sse = _normal_map_sse(*args, 0, rows // 2) + second.result()
         rmse = float(np.sqrt(sse / samples))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
@@ -259,7 +259,8 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
     :func:`_hemisphere`) against the reference row ``r0, r1, r2``: a loop without a sum, which
     the compiler vectorises."""
     for j in range(errors.shape[0]):
-        a, b, c = _hemisphere(x[j], y[j], equidistant) if two else (x[j], y[j], z[j])
+        u, v, w = np.float64(x[j]), np.float64(y[j]), np.float64(z[j])  # float32 channels: exactly
+        a, b, c = _hemisphere(u, v, equidistant) if two else (u, v, w)
         a, b, c = _unit(a, b, c)
         if top != 0:  # written in samples, read back and renormalised (psnr)
             a, b, c = _unit(_as_sample(a, top), _as_sample(b, top), _as_sample(c, top))

@@ -195,17 +195,21 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) 
         _rows(*args, 0, rows)
         return
     half = rows // 2
-    future = _pool().submit(_rows, *args, half, rows)
+    future = workers().submit(_rows, *args, half, rows)
     _rows(*args, 0, half)
     future.result()
 
 
-def _pool() -> ThreadPoolExecutor:
-    """The thread that computes the second half of the rows (one for the process)."""
+def workers() -> ThreadPoolExecutor:
+    """The process's worker threads, one fewer than :data:`CORES` (the calling thread takes a share
+    of the work): the second half of the rows of an iteration, the other channels of a transform
+    (:func:`bandelets.decoder.channel_transforms`), half of the rows of the encoder's measure
+    (:func:`bandelets.metrics.psnr_of_channels`). Made once: starting threads at every call took
+    a quarter of the restoration search's time on a loaded 2-core machine."""
     global _POOL
     with _POOL_LOCK:
         if _POOL is None:
-            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bandelets-gradient")
+            _POOL = ThreadPoolExecutor(max_workers=max(CORES - 1, 1), thread_name_prefix="bandelets")
         return _POOL
 
 
