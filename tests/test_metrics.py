@@ -169,3 +169,16 @@ def test_the_encoders_measure_sums_two_halves_of_a_large_map_as_one(monkeypatch)
     whole = metrics.psnr_of_channels(reference, "normal-map", 8, equidistant=True)(channels)
     assert 20.0 < whole < 80.0
     assert halves == pytest.approx(whole, abs=1e-9)
+
+
+@pytest.mark.parametrize("equidistant", [False, True])
+def test_the_encoders_measure_reads_float32_channels_as_their_float64_copy(equidistant):
+    """The restored channels are float32: the measure reads them without a float64 copy, to the
+    same last bit as the copy (each value widened exactly before any arithmetic)."""
+    from bandelets import metrics
+
+    rng = np.random.default_rng(4)
+    reference = unit_vectors(rng.normal(size=(20, 30, 3)) + [0.0, 0.0, 3.0])
+    channels = (0.3 * rng.normal(size=(2, 20, 30))).astype(np.float32)
+    measure = metrics.psnr_of_channels(reference, "normal-map", equidistant=equidistant)
+    assert measure(channels) == measure(channels.astype(np.float64))
