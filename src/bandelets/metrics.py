@@ -239,6 +239,7 @@ def psnr_of_channels(
 
     def measure(channels: np.ndarray) -> float:
         # float32 restored channels are read as float64, as decode makes them (no copy).
+        channels = np.asarray(channels)
         if channels.dtype not in (np.float32, np.float64):
             channels = np.asarray(channels, np.float64)
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
