@@ -139,6 +139,24 @@ def test_unit_normals_are_the_unit_vectors_of_the_decoded_channels(channels, rng
     assert unit_normals(padded, 10, 13) is None
 
 
+@pytest.mark.parametrize("equidistant", [False, True])
+def test_unit_normals_of_a_large_map_in_two_threads_are_the_same_numbers(monkeypatch, rng, equidistant):
+    """Above ``THREADED_PIXELS`` (and on more than one core) the two halves of the rows are made in
+    two threads; float32 channels (the restored ones) are read as their float64 copy: the same
+    numbers, and a value that is not finite is found in either half."""
+    from bandelets import metrics
+
+    padded = rng.uniform(-1.2, 1.2, (2, 40, 30)).astype(np.float32)
+    whole = metrics.unit_normals(padded.astype(np.float64), 37, 29, equidistant)
+    monkeypatch.setattr(metrics, "CORES", 2)
+    monkeypatch.setattr(metrics, "THREADED_PIXELS", 0)
+    np.testing.assert_array_equal(metrics.unit_normals(padded, 37, 29, equidistant), whole)
+    for row in (3, 30):
+        broken = padded.copy()
+        broken[0, row, 5] = np.nan
+        assert metrics.unit_normals(broken, 37, 29, equidistant) is None
+
+
 def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
     from bandelets.metrics import unit_normals
     from bandelets.normalmaps import equidistant
@@ -169,3 +187,16 @@ def test_the_encoders_measure_sums_two_halves_of_a_large_map_as_one(monkeypatch)
     whole = metrics.psnr_of_channels(reference, "normal-map", 8, equidistant=True)(channels)
     assert 20.0 < whole < 80.0
     assert halves == pytest.approx(whole, abs=1e-9)
+
+
+@pytest.mark.parametrize("equidistant", [False, True])
+def test_the_encoders_measure_reads_float32_channels_as_their_float64_copy(equidistant):
+    """The restored channels are float32: the measure reads them without a float64 copy, to the
+    same last bit as the copy (each value widened exactly before any arithmetic)."""
+    from bandelets import metrics
+
+    rng = np.random.default_rng(4)
+    reference = unit_vectors(rng.normal(size=(20, 30, 3)) + [0.0, 0.0, 3.0])
+    channels = (0.3 * rng.normal(size=(2, 20, 30))).astype(np.float32)
+    measure = metrics.psnr_of_channels(reference, "normal-map", equidistant=equidistant)
+    assert measure(channels) == measure(channels.astype(np.float64))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import replace
 
 import numpy as np
@@ -216,6 +217,28 @@ def test_channels_transformed_in_threads_decode_the_same(monkeypatch, crease_map
     alone = bandelets.decode(data)
     monkeypatch.setattr(decoder, "THREADS_FROM", 0)
     np.testing.assert_array_equal(bandelets.decode(data), alone)
+
+
+def test_decoding_and_measuring_start_no_threads_once_the_workers_are_there(monkeypatch, crease_map):
+    """The steps' halves, the channels' transforms and the encoder's measure share the process's
+    worker threads (restoration.workers): after a first decode, more decodes and measures start no
+    thread (one per call took a quarter of the restoration search on a loaded 2-core machine)."""
+    for module, name in [(restoration, "CORES"), (metrics, "CORES"), (restoration, "THREADED_SAMPLES")]:
+        monkeypatch.setattr(module, name, 2 if name == "CORES" else 0)
+    monkeypatch.setattr(metrics, "THREADED_PIXELS", 0)
+    monkeypatch.setattr(decoder, "THREADS_FROM", 0)
+    data = bandelets.encode(crease_map, bpp=1.0, kind="normal-map")
+    measure = metrics.psnr_of_channels(crease_map, "normal-map", equidistant=True)
+    bandelets.decode(data)
+    started = []
+    start = threading.Thread.start
+    monkeypatch.setattr(threading.Thread, "start", lambda thread: started.append(thread) or start(thread))
+    for _ in range(2):
+        decoded = bandelets.decode(data)
+        measure(np.zeros((2, 64, 64), np.float32))
+    assert started == []
+    monkeypatch.undo()
+    np.testing.assert_array_equal(decoded, bandelets.decode(data))
 
 
 @pytest.mark.parametrize("facing_away", [False, True])

@@ -6,7 +6,6 @@ The encoder chooses the number of restoration iterations with :func:`restoration
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from itertools import islice
 
@@ -172,12 +171,18 @@ THREADS_FROM = 512 * 512
 
 
 def _channel_map(header: Header):
-    """``each(function, channels)``, the list of ``function(channel)``: in one thread per channel
-    from :data:`THREADS_FROM` pixels on."""
-    if header.channels < 2 or header.height * header.width < THREADS_FROM:
+    """``each(function, channels)``, the list of ``function(channel)``: from :data:`THREADS_FROM`
+    pixels on, the first channel in the calling thread and the others in the process's worker
+    threads (:func:`bandelets.restoration.workers`, not new threads at every decode)."""
+    if header.channels < 2 or header.height * header.width < THREADS_FROM or restoration.CORES < 2:
         return lambda function, channels: [function(channel) for channel in channels]
-    pool = ThreadPoolExecutor(max_workers=header.channels)
-    return lambda function, channels: list(pool.map(function, channels))
+
+    def each(function, channels):
+        first, *others = channels
+        futures = [restoration.workers().submit(function, channel) for channel in others]
+        return [function(first), *(future.result() for future in futures)]
+
+    return each
 
 
 def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):

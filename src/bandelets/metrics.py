@@ -7,14 +7,13 @@ with its source.
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from .files import as_read
-from .restoration import CORES
+from .restoration import CORES, workers
 
 __all__ = [
     "AngularError",
@@ -67,7 +66,15 @@ def unit_normals(
     ndarray of float64, shape (height, width, 3), or None if a value of ``channels`` is not finite.
     """
     out = np.empty((height, width, 3))
-    return out if _unit_normals(np.asarray(channels, np.float64), out, equidistant) else None
+    channels = np.asarray(channels)
+    if channels.dtype not in (np.float32, np.float64):  # float32 restored channels: read as float64
+        channels = np.asarray(channels, np.float64)
+    if CORES == 1 or height * width < THREADED_PIXELS:
+        return out if _unit_normals(channels, out, equidistant, 0, height) else None
+    # The two halves of the rows in two threads (the kernel releases the GIL).
+    second = workers().submit(_unit_normals, channels, out, equidistant, height // 2, height)
+    first = _unit_normals(channels, out, equidistant, 0, height // 2)
+    return out if second.result() and first else None
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -84,13 +91,15 @@ def _hemisphere(a, b, equidistant):
 
 
 @njit(cache=True, nogil=True)
-def _unit_normals(channels, out, equidistant):
+def _unit_normals(channels, out, equidistant, first, last):
+    """The rows ``first`` to ``last`` of :func:`unit_normals` (each value of ``channels`` widened to
+    float64 exactly before any arithmetic); False if one of them is not finite."""
     finite = True
-    for i in range(out.shape[0]):
+    for i in range(first, last):
         for j in range(out.shape[1]):
-            x, y = channels[0, i, j], channels[1, i, j]
+            x, y = np.float64(channels[0, i, j]), np.float64(channels[1, i, j])
             if channels.shape[0] > 2:
-                z = channels[2, i, j]
+                z = np.float64(channels[2, i, j])
                 finite &= np.isfinite(z)
             else:
                 x, y, z = _hemisphere(x, y, equidistant)
@@ -229,15 +238,17 @@ def psnr_of_channels(
     del reference
 
     def measure(channels: np.ndarray) -> float:
-        channels = np.asarray(channels, np.float64)  # float32 restored channels: as decode makes them
+        # float32 restored channels are read as float64, as decode makes them (no copy).
+        channels = np.asarray(channels)
+        if channels.dtype not in (np.float32, np.float64):
+            channels = np.asarray(channels, np.float64)
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
         rows = planes.shape[1]
         if CORES == 1 or planes[0].size < THREADED_PIXELS:
             sse = _normal_map_sse(*args, 0, rows)
         else:  # the two halves of the rows in two threads (the kernel releases the GIL)
-            with ThreadPoolExecutor(1, thread_name_prefix="bandelets-measure") as pool:
-                second = pool.submit(_normal_map_sse, *args, rows // 2, rows)
-                sse = _normal_map_sse(*args, 0, rows // 2) + second.result()
+            second = workers().submit(_normal_map_sse, *args, rows // 2, rows)
+            sse = _normal_map_sse(*args, 0, rows // 2) + second.result()
         rmse = float(np.sqrt(sse / samples))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
 
@@ -259,7 +270,8 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
     :func:`_hemisphere`) against the reference row ``r0, r1, r2``: a loop without a sum, which
     the compiler vectorises."""
     for j in range(errors.shape[0]):
-        a, b, c = _hemisphere(x[j], y[j], equidistant) if two else (x[j], y[j], z[j])
+        u, v, w = np.float64(x[j]), np.float64(y[j]), np.float64(z[j])  # float32 channels: exactly
+        a, b, c = _hemisphere(u, v, equidistant) if two else (u, v, w)
         a, b, c = _unit(a, b, c)
         if top != 0:  # written in samples, read back and renormalised (psnr)
             a, b, c = _unit(_as_sample(a, top), _as_sample(b, top), _as_sample(c, top))
@@ -268,7 +280,7 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
 
 #: Pixels from which the encoder's measure of a normal map (:func:`psnr_of_channels`) sums the
 #: two halves of the rows in two threads: it measures every restoration iteration, 0.13 s of a
-#: 512 x 512 encode in one thread (2-core machine).
+#: 512 x 512 encode in one thread (2-core machine). The decoder's :func:`unit_normals` too.
 THREADED_PIXELS = 256 * 256
 
 
