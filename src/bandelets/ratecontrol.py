@@ -86,7 +86,9 @@ def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, 
         last = (x, value, offset)
 
         def error(y: float, at: float = x, offset: float = offset, slope: float = slope) -> float:
-            return model(y) + offset + slope * (y - at) - goal
+            # The secant of the offset holds near ``at``, not across the whole range (where it
+            # could outgrow the model's own slope and send the search to an end).
+            return model(y) + offset + slope * min(max(y - at, -1.0), 1.0) - goal
 
         x = _next(x_low, x_high, _solve(error, x_min, x_max))
         if x_low is not None and x_high is not None and x_high - x_low < 1e-4:
@@ -150,6 +152,7 @@ def for_size(
     progress: Progress | None = None,
     t_min: float = 0.0,
     room: int = 0,
+    probe: Callable[[float], float] | None = None,
 ):
     """Largest file of at most ``target_bytes - room`` bytes, by a model-guided secant search on
     ``log T``.
@@ -172,6 +175,12 @@ def for_size(
         Bytes to leave free below the target (the loop filter's, :mod:`bandelets.loopfilter`),
         at most ``SIZE_TOLERANCE / 2`` of it: the file lands in ``[(1 - SIZE_TOLERANCE) target,
         target - room]``, within the tolerance whether or not the room is taken.
+    probe : callable, optional
+        ``T -> bytes``: a prediction of the file's size at ``T``, much cheaper than ``encode_at``
+        and off by a factor that holds over the thresholds near the target (the encoder's
+        wavelet file). Where given, the model's offset is measured by the probe at the model's
+        first threshold, and the first file is encoded where model and offset meet the target:
+        often within the tolerance already. The file kept is always one ``encode_at`` made.
 
     Returns
     -------
@@ -205,6 +214,11 @@ def for_size(
         return math.log(size), done, size > largest
 
     start = math.log(first_threshold(target_bytes - room, t_max, model))
+    if probe is not None:
+        # Aimed at the upper part of the tolerance: a larger file is a better one.
+        aim = math.log((1 - SIZE_TOLERANCE / 3) * target_bytes - room)
+        offset = math.log(max(probe(math.exp(start)), 1.0)) - model(start)
+        start = _solve(lambda x: model(x) + offset - aim, floor, math.log(t_max))
     _search(measure, goal, start, floor, math.log(t_max), model, 0.0)
     if best is None:  # the search wandered: the smallest file is the answer, if it fits
         measure(math.log(t_max))
