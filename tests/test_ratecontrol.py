@@ -51,13 +51,15 @@ def test_a_probe_that_knows_the_offset_saves_the_encodings(rng):
 
     target = 20_000
     for error, most in ((1.003, 1), (1.1, 3), (0.9, 3)):
-        calls = []
+        calls: list[float] = []
 
-        def encode_at(t):
+        def encode_at(t, calls=calls):
             calls.append(t)
             return SimpleNamespace(data=b"x" * int(size(t)))
 
-        result = ratecontrol.for_size(encode_at, target, 1e3, model, probe=lambda t: error * size(t))
+        result = ratecontrol.for_size(
+            encode_at, target, 1e3, model, probe=lambda t, error=error: error * size(t)
+        )
         assert (1 - ratecontrol.SIZE_TOLERANCE) * target <= len(result.data) <= target
         assert len(calls) <= most
 
