@@ -79,18 +79,19 @@ def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, 
         else:
             x_high = x if x_high is None else min(x_high, x)
         offset = value - model(x)
-        slope = drift
+        slope, low, high = drift, x_min, x_max
         # A rising secant is a wiggle of the basis choice: trust the prior drift instead.
         if last is not None and last[0] != x and (value - last[1]) / (x - last[0]) < 0:
             slope = (offset - last[2]) / (x - last[0])
+            # The secant of the offset holds near ``x``, not across the whole range (where it can
+            # outgrow the model's own slope and send the search to an end): a step of at most 1.
+            low, high = max(x_min, x - 1.0), min(x_max, x + 1.0)
         last = (x, value, offset)
 
         def error(y: float, at: float = x, offset: float = offset, slope: float = slope) -> float:
-            # The secant of the offset holds near ``at``, not across the whole range (where it
-            # could outgrow the model's own slope and send the search to an end).
-            return model(y) + offset + slope * min(max(y - at, -1.0), 1.0) - goal
+            return model(y) + offset + slope * (y - at) - goal
 
-        x = _next(x_low, x_high, _solve(error, x_min, x_max))
+        x = _next(x_low, x_high, _solve(error, low, high))
         if x_low is not None and x_high is not None and x_high - x_low < 1e-4:
             return
 
