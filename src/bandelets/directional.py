@@ -104,8 +104,6 @@ PAIRS_PAY_BELOW = 0.9
 DEEPER = 1
 #: Samples of a pass from which :func:`choose` searches the channels in parallel threads.
 THREADS_FROM = 256 * 256
-#: Samples of a channel up to which :func:`cost` works on the channels in parallel threads.
-COST_THREADS_UP_TO = 1024 * 1024
 #: The directions are kept where they bring the estimated cost of a file below this fraction of
 #: the plain wavelet's (:func:`pays`).
 PAYS_BELOW = 0.885
@@ -399,21 +397,9 @@ def cost(
     code_fields(coder, side, channels[0].shape, lifting, 0)
     bits = 8.0 * len(coder.finish())
     error = 0.0
-
-    def terms(x: np.ndarray, c: np.ndarray) -> tuple[float, float]:
-        rate = float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
-        return rate, float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
-
-    # The channels in threads (nogil kernels), up to COST_THREADS_UP_TO samples: each holds its
-    # temporaries at once, and a 2048 x 2048 encode's peak is here.
-    if len(channels) > 1 and THREADS_FROM <= channels[0].size <= COST_THREADS_UP_TO:
-        with ThreadPoolExecutor(max_workers=len(channels)) as pool:
-            found = list(pool.map(terms, channels, coefficients))
-    else:
-        found = list(map(terms, channels, coefficients))
-    for rate, squared in found:  # summed in the channels' order: the same number either way
-        bits += rate
-        error += squared
+    for x, c in zip(channels, coefficients, strict=True):
+        bits += float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
+        error += float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
     return error + LAMBDA * threshold**2 * bits
 
 
