@@ -156,14 +156,13 @@ def _normal_equations(x, residual, table, bound, stride):
     with ``A_c`` the features of channel ``c`` of ``x`` at the pixels of every ``stride``-th row
     (``residual``: the target minus ``x`` at those rows, shape (C, rows, W)), scaled as if from
     every row: products of ``A_c'`` and the residual by their transpose, a block of rows at a time
-    (:data:`_BLOCK` pixels), the channels in threads."""
+    (:data:`_BLOCK` pixels)."""
     channels, rows, cols = x.shape
     n = len(table)
     block = max(1, _BLOCK // cols)  # sampled rows a block
+    f = np.empty((n + 1, block * cols))
     total = np.zeros((channels, n + 1, n + 1))
-
-    def channel(c: int) -> None:
-        f = np.empty((n + 1, block * cols))
+    for c in range(channels):
         for first in range(0, residual.shape[1], block):
             count = min(block, residual.shape[1] - first) * cols
             _features(x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f)
@@ -172,14 +171,6 @@ def _normal_equations(x, residual, table, bound, stride):
                 total[c] += f[:, :count] @ f[:, :count].T
             else:
                 _gram(f, count, total[c])
-
-    if CORES == 1 or channels == 1:
-        for c in range(channels):
-            channel(c)
-    else:  # the channels in threads (the kernels and the products release the GIL): the same sums
-        with ThreadPoolExecutor(min(CORES, channels), thread_name_prefix="bandelets-loop-filter") as pool:
-            for done in [pool.submit(channel, c) for c in range(channels)]:
-                done.result()
     return total[:, :n, :n] * stride, total[:, :n, n] * stride
 
 
@@ -349,8 +340,13 @@ def choose(
     residual = target[:, ::stride] - x[:, ::stride]  # float64, as x
     fit = partial(_proposal, x, residual, threshold=threshold, stride=stride, price=price, budget=budget)
     proposal, proposal_cost = None, 0.0
-    for clip in CLIPS:
-        cost, found = fit([shape for shape in shapes if not shape[2]], clip)
+    diamonds = [shape for shape in shapes if not shape[2]]
+    if CORES == 1:
+        fitted = [fit(diamonds, clip) for clip in CLIPS]
+    else:  # the clippings in threads (the kernels and the products release the GIL), kept in order
+        with ThreadPoolExecutor(min(CORES, len(CLIPS)), thread_name_prefix="bandelets-loop-filter") as pool:
+            fitted = list(pool.map(partial(fit, diamonds), CLIPS))
+    for cost, found in fitted:
         if cost < proposal_cost:
             proposal_cost, proposal = cost, found
     squares = [shape for shape in shapes if shape[2]]
