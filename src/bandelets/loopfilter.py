@@ -340,13 +340,8 @@ def choose(
     residual = target[:, ::stride] - x[:, ::stride]  # float64, as x
     fit = partial(_proposal, x, residual, threshold=threshold, stride=stride, price=price, budget=budget)
     proposal, proposal_cost = None, 0.0
-    diamonds = [shape for shape in shapes if not shape[2]]
-    if CORES == 1:
-        fitted = [fit(diamonds, clip) for clip in CLIPS]
-    else:  # the clippings in threads (the kernels and the products release the GIL), kept in order
-        with ThreadPoolExecutor(min(CORES, len(CLIPS)), thread_name_prefix="bandelets-loop-filter") as pool:
-            fitted = list(pool.map(partial(fit, diamonds), CLIPS))
-    for cost, found in fitted:
+    for clip in CLIPS:
+        cost, found = fit([shape for shape in shapes if not shape[2]], clip)
         if cost < proposal_cost:
             proposal_cost, proposal = cost, found
     squares = [shape for shape in shapes if shape[2]]
