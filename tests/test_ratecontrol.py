@@ -41,6 +41,45 @@ def test_for_size_meets_the_target_in_few_encodings(rng):
     assert len(calls) <= 3
 
 
+def test_a_probe_that_knows_the_offset_saves_the_encodings(rng):
+    """A probe off by a factor close to the one it is corrected for: one encoding meets the target;
+    a probe off by more still ends within the tolerance, by the search on real files."""
+    model = ratecontrol.size_model(_magnitudes(rng))
+
+    def size(t):  # a slower drift than above: the wavelet file's ratio holds near the target
+        return math.exp(model(math.log(t)) + 0.3 - 0.01 * math.log(t))
+
+    target = 20_000
+    for error, most in ((1.003, 1), (1.1, 3), (0.9, 3)):
+        calls: list[float] = []
+
+        def encode_at(t, calls=calls):
+            calls.append(t)
+            return SimpleNamespace(data=b"x" * int(size(t)))
+
+        result = ratecontrol.for_size(
+            encode_at, target, 1e3, model, probe=lambda t, error=error: error * size(t)
+        )
+        assert (1 - ratecontrol.SIZE_TOLERANCE) * target <= len(result.data) <= target
+        assert len(calls) <= most
+
+
+def test_the_search_does_not_extrapolate_a_drift_to_an_end(rng):
+    """Two files just above the target whose sizes fall slower than the model's: the secant of
+    the offset, positive, must not send the next step to the smallest threshold."""
+    model = ratecontrol.size_model(_magnitudes(rng))
+    calls = []
+
+    def encode_at(t):
+        calls.append(t)
+        return SimpleNamespace(data=b"x" * int(math.exp(0.5 * model(math.log(t)) + 5.0)))
+
+    target = int(math.exp(0.5 * model(math.log(0.05)) + 5.0))
+    result = ratecontrol.for_size(encode_at, target, 1e3, model)
+    assert (1 - ratecontrol.SIZE_TOLERANCE) * target <= len(result.data) <= target
+    assert min(calls) > 1e-3 and len(calls) <= 8
+
+
 def test_for_quality_stops_on_a_plateau():
     """Above some T every file is the smallest one (all coefficients zero): once it comes back the
     search stops instead of walking the plateau for its 40 steps."""

@@ -79,16 +79,19 @@ def _search(measure, goal: float, x0: float, x_min: float, x_max: float, model, 
         else:
             x_high = x if x_high is None else min(x_high, x)
         offset = value - model(x)
-        slope = drift
+        slope, low, high = drift, x_min, x_max
         # A rising secant is a wiggle of the basis choice: trust the prior drift instead.
         if last is not None and last[0] != x and (value - last[1]) / (x - last[0]) < 0:
             slope = (offset - last[2]) / (x - last[0])
+            # The secant of the offset holds near ``x``, not across the whole range (where it can
+            # outgrow the model's own slope and send the search to an end): a step of at most 1.
+            low, high = max(x_min, x - 1.0), min(x_max, x + 1.0)
         last = (x, value, offset)
 
         def error(y: float, at: float = x, offset: float = offset, slope: float = slope) -> float:
             return model(y) + offset + slope * (y - at) - goal
 
-        x = _next(x_low, x_high, _solve(error, x_min, x_max))
+        x = _next(x_low, x_high, _solve(error, low, high))
         if x_low is not None and x_high is not None and x_high - x_low < 1e-4:
             return
 
@@ -150,6 +153,7 @@ def for_size(
     progress: Progress | None = None,
     t_min: float = 0.0,
     room: int = 0,
+    probe: Callable[[float], float] | None = None,
 ):
     """Largest file of at most ``target_bytes - room`` bytes, by a model-guided secant search on
     ``log T``.
@@ -172,6 +176,12 @@ def for_size(
         Bytes to leave free below the target (the loop filter's, :mod:`bandelets.loopfilter`),
         at most ``SIZE_TOLERANCE / 2`` of it: the file lands in ``[(1 - SIZE_TOLERANCE) target,
         target - room]``, within the tolerance whether or not the room is taken.
+    probe : callable, optional
+        ``T -> bytes``: a prediction of the file's size at ``T``, much cheaper than ``encode_at``
+        and off by a factor that holds over the thresholds near the target (the encoder's
+        wavelet file). Where given, the model's offset is measured by the probe at the model's
+        first threshold, and the first file is encoded where model and offset meet the target:
+        often within the tolerance already. The file kept is always one ``encode_at`` made.
 
     Returns
     -------
@@ -205,6 +215,11 @@ def for_size(
         return math.log(size), done, size > largest
 
     start = math.log(first_threshold(target_bytes - room, t_max, model))
+    if probe is not None:
+        # Aimed at the upper part of the tolerance: a larger file is a better one.
+        aim = math.log((1 - SIZE_TOLERANCE / 3) * target_bytes - room)
+        offset = math.log(max(probe(math.exp(start)), 1.0)) - model(start)
+        start = _solve(lambda x: model(x) + offset - aim, floor, math.log(t_max))
     _search(measure, goal, start, floor, math.log(t_max), model, 0.0)
     if best is None:  # the search wandered: the smallest file is the answer, if it fits
         measure(math.log(t_max))
