@@ -43,7 +43,7 @@ def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
     files = {}
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
-            monkeypatch.setattr(encoder, "choose_levels", lambda coefficients, levels, threshold: levels)
+            monkeypatch.setattr(encoder, "choose_levels", lambda coefficients, levels, threshold, frames=False: levels)
         data = bandelets.encode(samples, bpp=0.5, kind="normal-map", depth=8)
         assert 8 * len(data) <= 0.5 * 128 * 128
         files[choice] = unpack(data)[0].levels, metrics.psnr(reference, bandelets.decode(data), "normal-map")

@@ -430,14 +430,14 @@ def encode_with_stats(
     # A rate target's model keeps a sample of the magnitudes, not all of them.
     model = ratecontrol.size_model(magnitudes) if bpp is not None else None
     del magnitudes
-    if two and options.wavelet == "cdf97" and (bpp is not None or threshold is not None):
+    if kind == "normal-map" and options.wavelet == "cdf97" and (bpp is not None or threshold is not None):
         # Fewer levels where the median predictor codes the coarse band for less (levelchoice).
         t = (
             float(threshold)
             if bpp is None
             else ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
         )
-        if (fewer := choose_levels(coefficients, levels, t)) < levels:
+        if (fewer := choose_levels(coefficients, levels, t, frames=not two)) < levels:
             levels, lifting_levels = fewer, _lifting_levels(options, fewer, geometry)
             coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
             if model is not None:
