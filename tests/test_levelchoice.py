@@ -9,7 +9,7 @@ import bandelets
 from bandelets import encoder, metrics, normalmaps
 from bandelets.bitstream import unpack
 from bandelets.files import from_samples
-from bandelets.levelchoice import MIN_LEVELS, choose_levels
+from bandelets.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels
 from bandelets.samples import bevel_normal_map, bump_normal_map
 from bandelets.transform import wavelet_coefficients
 from bandelets.wavelets import coarse_blocks, max_levels, wavedec
@@ -43,10 +43,59 @@ def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
     files = {}
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
-            monkeypatch.setattr(encoder, "choose_levels", lambda coefficients, levels, threshold, frames=False: levels)
+            monkeypatch.setattr(
+                encoder, "choose_levels", lambda coefficients, levels, threshold, frames=False: levels
+            )
         data = bandelets.encode(samples, bpp=0.5, kind="normal-map", depth=8)
         assert 8 * len(data) <= 0.5 * 128 * 128
         files[choice] = unpack(data)[0].levels, metrics.psnr(reference, bandelets.decode(data), "normal-map")
     assert files["chosen"][0] == MIN_LEVELS
     assert files["all levels"][0] == max_levels((128, 128))
     assert files["chosen"][1] > files["all levels"][1] + 0.3
+
+
+def _sphere(n, cells=None):
+    """Normals facing every way (three channels): a latitude-longitude sphere, smooth, or
+    constant on ``cells`` x ``cells`` facets."""
+    i, k = np.mgrid[0:n, 0:n] / n
+    if cells is not None:
+        i, k = np.floor(i * cells) / cells, np.floor(k * cells) / cells
+    theta, phi = np.pi * (i + 0.5 / (cells or n)), 2 * np.pi * k
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], -1)
+
+
+def test_three_channels_facets_take_fewer_levels_a_smooth_sphere_all():
+    for name, expected in (("facets", FRAMES_LEVELS), ("smooth", 4)):
+        x = metrics.unit_vectors(_sphere(128, 6 if name == "facets" else None))
+        assert not normalmaps.faces_one_way(x)
+        coefficients = wavelet_coefficients(x, "cdf97", max_levels(x.shape[:2]))
+        for t in (0.3, 0.03):
+            assert choose_levels(coefficients, 4, t, frames=True) == expected
+        # The two-channel rule would take two levels on the facets (lost on fandisk's normal map).
+        assert choose_levels(coefficients, 4, 0.3) == (MIN_LEVELS if name == "facets" else 4)
+
+
+@pytest.mark.parametrize("target", [{"bpp": 0.5}, {"psnr": 60.0}])
+def test_three_channels_encode_with_the_levels_chosen_and_they_pay(monkeypatch, target):
+    vectors = _sphere(128, 6)
+    reference = metrics.unit_vectors(vectors)
+    files = {}
+    for choice in ("chosen", "all levels"):
+        if choice == "all levels":
+            monkeypatch.setattr(
+                encoder, "choose_levels", lambda coefficients, levels, threshold, frames: levels
+            )
+        data = bandelets.encode(vectors, kind="normal-map", **target)
+        files[choice] = (
+            unpack(data)[0].levels,
+            len(data),
+            metrics.psnr(reference, bandelets.decode(data), "normal-map"),
+        )
+    assert files["chosen"][0] == FRAMES_LEVELS
+    assert files["all levels"][0] == 4
+    if "bpp" in target:
+        assert 8 * files["chosen"][1] <= 0.5 * 128 * 128
+        assert files["chosen"][2] > files["all levels"][2] + 3.0
+    else:  # a quality target: chosen at the search's first threshold, met in a smaller file
+        assert files["chosen"][2] >= 60.0
+        assert files["chosen"][1] < 0.9 * files["all levels"][1]

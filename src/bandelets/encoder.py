@@ -430,19 +430,26 @@ def encode_with_stats(
     # A rate target's model keeps a sample of the magnitudes, not all of them.
     model = ratecontrol.size_model(magnitudes) if bpp is not None else None
     del magnitudes
-    if kind == "normal-map" and options.wavelet == "cdf97" and (bpp is not None or threshold is not None):
-        # Fewer levels where the median predictor codes the coarse band for less (levelchoice).
-        t = (
-            float(threshold)
-            if bpp is None
-            else ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
-        )
+    reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
+    # A quality target's search starts where a uniform quantizer's error would meet it.
+    t_guess = None
+    if max_angle is not None:
+        t_guess = min(t_max, np.radians(max_angle))
+    elif psnr is not None:
+        t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
+    # Fewer levels where the median predictor codes the coarse band for less (levelchoice), at
+    # the threshold expected: the first of rate control or of a quality target's search.
+    if kind == "normal-map" and options.wavelet == "cdf97" and (bpp, threshold, t_guess) != (None,) * 3:
+        t = t_guess
+        if threshold is not None:
+            t = float(threshold)
+        elif bpp is not None:
+            t = ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
         if (fewer := choose_levels(coefficients, levels, t, frames=not two)) < levels:
             levels, lifting_levels = fewer, _lifting_levels(options, fewer, geometry)
             coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
             if model is not None:
                 model = ratecontrol.size_model(np.abs(np.concatenate([c.ravel() for c in coefficients])))
-    reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout == "xy" else x
     del x
     measure_channels = targets = to_error = None
     # Bytes the loop filter may take: a rate target keeps some aside (None: no limit).
@@ -564,7 +571,7 @@ def encode_with_stats(
             return kept
         if max_angle is not None:
             # -20 log10 of the angle falls with log T like a PSNR: the same search applies.
-            goal, t_guess = -20.0 * np.log10(max_angle), min(t_max, np.radians(max_angle))
+            goal = -20.0 * np.log10(max_angle)
 
             def quality(encoded: Encoded) -> float:
                 p99 = metrics.angular_error(reference, as_read(decoded(encoded), kind, depth)).p99
@@ -574,8 +581,6 @@ def encode_with_stats(
                 return f"p99 angle of {10 ** (-q / 20):.3g} degrees"
         else:
             goal = float(psnr)
-            # Start where a uniform quantizer's error would meet the target.
-            t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
 
             def quality(encoded: Encoded) -> float:
                 return encoded.psnr if encoded.psnr is not None else measure(decoded(encoded))
