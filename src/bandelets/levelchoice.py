@@ -19,9 +19,14 @@ where it saves enough (:data:`PAYS_BELOW`). That part is a sixteenth of the imag
 A normal map of three channels (in local frames, :mod:`bandelets.frames`) is priced the same way,
 on its coefficients in the global frame, but keeps fewer levels only at :data:`FRAMES_LEVELS` and
 under the stricter :data:`FRAMES_PAY_BELOW`: its details are coded in frames that the estimate does
-not see. On fandisk's normal map at 256, three levels of five gained +0.15 to +0.24 dB at 0.25 to
+not see. On fandisk's normal map at 256, three levels of five gained +0.17 to +0.24 dB at 0.25 to
 2 bpp (estimate 0.945 to 0.956 of all the levels' cost), two lost up to 2.2 dB; on bunny's, three
-lost up to 0.46 dB (estimate 0.987 to 0.994).
+lost up to 0.46 dB (estimate 0.987 to 0.994): +0.22 dB BD-PSNR on fandisk's, bunny's unchanged
+(``benchmarks/rd_defaults.py``).
+
+A quality target (PSNR, angle) is priced at the first threshold of its search, which may lie far
+from its last (the bevel map at 256 and 35 dB: 0.036, where the file took 0.149), so it keeps all
+the levels more often than a rate target does.
 """
 
 from __future__ import annotations
