@@ -39,7 +39,7 @@ def _log_penalty(squared_norm, smoothing, edge):
     return np.sum(edge * np.log1p(n / edge))
 
 
-def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0):
+def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0, folded=False):
     """The restoration penalty written plainly with numpy, from its definition."""
     dx = np.diff(x, axis=2, append=x[:, :, -1:])
     dy = np.diff(x, axis=1, append=x[:, -1:, :])
@@ -49,20 +49,37 @@ def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0):
     yy[:, 1:-1, :] = np.diff(x, 2, axis=1)
     xy[:, :-1, :-1] = np.diff(np.diff(x, axis=1), axis=2)
     second = _log_penalty(np.sum(xx**2 + yy**2 + 2 * xy**2, axis=0), smoothing, second_edge)
+    if folded:  # each pair of pixels glued across an edge once, as on the sphere
+        rows, cols = x.shape[1:]
+        pairs = [((e, j), (e, cols - 1 - j)) for e in (0, rows - 1) for j in range(cols // 2)]
+        pairs += [((i, e), (rows - 1 - i, e)) for e in (0, cols - 1) for i in range(rows // 2)]
+        across = np.array([x[:, p[0], p[1]] - x[:, q[0], q[1]] for p, q in pairs])
+        first += _log_penalty(np.sum(across**2, axis=1), smoothing, edge)
     return first + second_order * second
 
 
-# A log total variation; the total variation; each with a log penalty on the second differences.
-@pytest.mark.parametrize("edge, second_order", [(0.05, 0.0), (1e6, 0.0), (0.05, 0.3), (1e6, 2.0)])
-def test_penalty_gradient_is_the_derivative(rng, edge, second_order):
-    x = rng.random((2, 5, 7))
-    gradient = restoration.penalty_gradient(x, 0.1, edge, second_order, 0.2)
+# A log total variation; the total variation; each with a log penalty on the second differences;
+# with the differences across the folds of an octahedral geometry image (odd and even sides).
+@pytest.mark.parametrize(
+    "edge, second_order, folded, shape",
+    [
+        (0.05, 0.0, False, (2, 5, 7)),
+        (1e6, 0.0, False, (2, 5, 7)),
+        (0.05, 0.3, False, (2, 5, 7)),
+        (1e6, 2.0, False, (2, 5, 7)),
+        (0.05, 0.3, True, (2, 5, 7)),
+        (0.05, 0.3, True, (3, 6, 6)),
+    ],
+)
+def test_penalty_gradient_is_the_derivative(rng, edge, second_order, folded, shape):
+    x = rng.random(shape)
+    gradient = restoration.penalty_gradient(x, 0.1, edge, second_order, 0.2, folded=folded)
     h = 1e-6
     numeric = np.zeros_like(x)
     for index in np.ndindex(x.shape):
         step = np.zeros_like(x)
         step[index] = h
-        up, down = (_penalty(x + s, 0.1, edge, second_order, 0.2) for s in (step, -step))
+        up, down = (_penalty(x + s, 0.1, edge, second_order, 0.2, folded) for s in (step, -step))
         numeric[index] = (up - down) / (2 * h)
     np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-7)
 

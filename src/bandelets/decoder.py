@@ -160,6 +160,7 @@ def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifti
         header.threshold,
         *channel_transforms(header, trees, quantized, lifting),
         unit_vectors=(header.height, header.width) if unit else None,
+        folded=header.extension == "spherical",
     )
 
 

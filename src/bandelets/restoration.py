@@ -141,6 +141,7 @@ def penalty_gradient(
     second_order: float = 0.0,
     second_edge: float = 1.0,
     out: np.ndarray | None = None,
+    folded: bool = False,
 ) -> np.ndarray:
     """Gradient of the restoration penalty: a vectorial log total variation
     ``sum edge log(1 + n / edge)``, where ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every
@@ -162,6 +163,12 @@ def penalty_gradient(
         >= 0; 0 leaves the second-order term out.
     out : ndarray, shape (C, H, W), float64, row-major, optional
         Where to write the gradient (not ``x``).
+    folded : bool
+        ``x`` is an octahedral geometry image, glued across each edge to itself turned by half a
+        turn about the edge's midpoint (:func:`bandelets.wavelets.spherical_folds`): each border
+        pixel also has a neighbour across the edge (the pixel ``(0, W - 1 - j)`` for ``(0, j)``,
+        ``(H - 1 - i, 0)`` for ``(i, 0)``, the same on the other edges), and each such pair adds a
+        term ``edge log(1 + n / edge)`` with ``n = sqrt(sum_c (x_c - y_c)**2 + smoothing**2)``.
 
     Notes
     -----
@@ -175,11 +182,11 @@ def penalty_gradient(
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty_like(x) if out is None else out
-    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0)
+    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0, folded)
     return out
 
 
-def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) -> None:
+def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, folded=False) -> None:
     """:func:`_rows` over all the rows of ``x``: in two threads, a half of the rows each, from
     :data:`THREADED_SAMPLES` pixels on (each row is the same numbers whichever thread computes it)."""
     rows, cols = x.shape[1:]
@@ -190,7 +197,7 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols) 
     # The differences and the step in the images' type (float32 images: twice the samples to a vector).
     real = x.dtype.type
     args = (x, real(1.0 / smoothing), real(_LARGEST), *scaled, real(step), out, previous, real(weight))
-    args = (*args, int(unit_rows), int(unit_cols))
+    args = (*args, int(unit_rows), int(unit_cols), bool(folded))
     if rows * cols < THREADED_SAMPLES or rows < 8 or CORES < 2:
         _rows(*args, 0, rows)
         return
@@ -245,6 +252,7 @@ def _rows(
     weight,
     unit_rows,
     unit_cols,
+    folded,
     start,
     stop,
 ):
@@ -278,6 +286,8 @@ def _rows(
             _row_terms(x, i + 1, *constants, s, w, px, py, a, b, d, dy)
         for c in range(channels):
             _divergence_row(i, rows, px[c], py[c], a[c], b[c], d[c], constants[-1], g[c])
+        if folded:
+            _across_folds(x, i, scale, largest, edge, g)
         if step < 0.0:
             for c in range(channels):
                 out[c, i] = g[c]
@@ -425,6 +435,31 @@ def _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, inside):
 
 
 @njit(cache=True, nogil=True)
+def _across_folds(x, i, scale, largest, edge, g):
+    """Adds to ``g`` (row ``i`` of the gradient, all channels) the terms of the differences of row
+    ``i``'s border pixels with their neighbours across the folds of an octahedral geometry image
+    (see :func:`penalty_gradient`): the whole row on the first and last rows, else its ends."""
+    rows, cols = x.shape[1:]
+    if i == 0 or i == rows - 1:
+        for j in range(cols):
+            _fold_pair(x, i, j, i, cols - 1 - j, scale, largest, edge, g)
+    _fold_pair(x, i, 0, rows - 1 - i, 0, scale, largest, edge, g)
+    _fold_pair(x, i, cols - 1, rows - 1 - i, cols - 1, scale, largest, edge, g)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fold_pair(x, i, j, m, n, scale, largest, edge, g):
+    """``g[:, j] += w (x[:, i, j] - x[:, m, n])``, ``w`` the weight of that joint difference."""
+    s = np.float32(0.0)
+    for c in range(x.shape[0]):
+        e = _scaled(x[c, i, j] - x[c, m, n], scale, largest)
+        s += e * e
+    w = _log_weight(s, edge)
+    for c in range(x.shape[0]):
+        g[c, j] += _scaled(x[c, i, j] - x[c, m, n], scale, largest) * w
+
+
+@njit(cache=True, nogil=True)
 def _to_unit_length(x, i, cols):
     """Vectors ``x[:, i, j]`` of the row ``i``, first ``cols`` columns, to unit length, in place
     (those shorter than :data:`_SHORTEST` left as they are)."""
@@ -445,6 +480,7 @@ def iterate(
     analysis: Callable[[np.ndarray], np.ndarray],
     synthesis: Callable[[np.ndarray], np.ndarray],
     unit_vectors: tuple[int, int] | None = None,
+    folded: bool = False,
 ) -> Iterator[np.ndarray]:
     """The restored channels, after 0, 1, 2, ... iterations (without end).
 
@@ -462,6 +498,9 @@ def iterate(
         ``w`` columns (a normal map coded with its z): each step also brings those vectors
         back to unit length before the projection into the bins (+0.2 to +0.4 dB on the
         fandisk normal map at 0.25 to 1 bpp, measured with the plain total variation).
+    folded : bool
+        The channels are an octahedral geometry image (the file's spherical extension): the
+        penalty also takes the differences across its folds (:func:`penalty_gradient`).
 
     Yields
     ------
@@ -496,7 +535,7 @@ def iterate(
         weight = (t - 1.0) / t_next
         project = k % PROJECT_EVERY == 0
         # The step, and unless it projects, the momentum into x: one pass over the image.
-        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit)
+        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit, folded)
         if project:
             if dtype == np.float64:  # the images' buffers swap roles: spare is not always the same one
                 wide = spare
