@@ -85,15 +85,16 @@ def test_penalty_gradient_is_the_derivative(rng, edge, second_order, folded, sha
 
 
 @pytest.mark.parametrize("shape", [(3, 9, 6), (1, 8, 5), (2, 33, 17)])
-def test_the_gradient_in_two_threads_is_the_same_numbers(rng, monkeypatch, shape):
+@pytest.mark.parametrize("folded", [False, True])
+def test_the_gradient_in_two_threads_is_the_same_numbers(rng, monkeypatch, shape, folded):
     """The rows split in two halves (each with the rows its stencils reach past the cut) give
     the same bits as one piece: the restoration's output must not depend on the thread count."""
     x = rng.standard_normal(shape)
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 2**62)
-    whole = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2)
+    whole = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded)
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 0)
     monkeypatch.setattr(restoration, "CORES", 2)
-    halves = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2)
+    halves = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded)
     assert np.array_equal(whole, halves)
 
 

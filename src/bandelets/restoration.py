@@ -53,6 +53,18 @@ digits only (+4.12 / +0.49 dB on crease / bumps either way, ``benchmarks/restora
 in 0.7 times the CPU time at 512 x 512 for as many iterations (BENCHMARKS.md, "Decoder-side
 restoration").
 
+On an octahedral geometry image (the file's spherical extension, :func:`bandelets.wavelets.spherical_folds`)
+the image is glued across each edge to itself turned by half a turn: the penalty's first term also takes
+the difference of every border pixel with its neighbour across the edge (``folded``), where it would
+otherwise see no neighbour. Measured on fandisk / bunny's geometry images (256 x 256, ``restore=True``,
+0.25 to 2 bpp, same files): +0.018 / +0.003 dB PSNR of the positions on average, +0.04 / +0.02 dB at
+0.25 bpp. Forced onto the normal maps of the same meshes (octahedral images too, but coded as normal maps
+with the symmetric extension, so nothing in their files says so), it would restore +0.10 / +0.03 dB more
+(``benchmarks/restoration_variants.py --maps fandisk,bunny``, +0.18 dB at 0.25 bpp on fandisk). A
+second-order term at the border with the whole-sample symmetric extension of the wavelets (``xx = 2 dx``
+on the border) lost there: -0.06 / -0.02 dB (it pulls the slope at the border to 0, the second
+differences' free end, 0 on the border, is kept).
+
 Written here (compiled loops for the gradient, the steps, the renormalisation and the projection
 into the bins) because no library offers such a reconstruction constrained in an arbitrary (here
 bandelet) basis: scikit-image's and scipy's total-variation denoisers solve the unconstrained
