@@ -66,15 +66,20 @@ def unit_normals(
     ndarray of float64, shape (height, width, 3), or None if a value of ``channels`` is not finite.
     """
     out = np.empty((height, width, 3))
-    channels = np.asarray(channels)
-    if channels.dtype not in (np.float32, np.float64):  # float32 restored channels: read as float64
-        channels = np.asarray(channels, np.float64)
+    channels = _real(channels)
     if CORES == 1 or height * width < THREADED_PIXELS:
         return out if _unit_normals(channels, out, equidistant, 0, height) else None
     # The two halves of the rows in two threads (the kernel releases the GIL).
     second = workers().submit(_unit_normals, channels, out, equidistant, height // 2, height)
     first = _unit_normals(channels, out, equidistant, 0, height // 2)
     return out if second.result() and first else None
+
+
+def _real(channels) -> np.ndarray:
+    """``channels`` as float32 or float64, without a copy where they are one already: the kernels
+    widen float32 restored channels to float64 value by value, the numbers decode makes."""
+    channels = np.asarray(channels)
+    return channels if channels.dtype in (np.float32, np.float64) else channels.astype(np.float64)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -238,10 +243,7 @@ def psnr_of_channels(
     del reference
 
     def measure(channels: np.ndarray) -> float:
-        # float32 restored channels are read as float64, as decode makes them (no copy).
-        channels = np.asarray(channels)
-        if channels.dtype not in (np.float32, np.float64):
-            channels = np.asarray(channels, np.float64)
+        channels = _real(channels)
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
         rows = planes.shape[1]
         if CORES == 1 or planes[0].size < THREADED_PIXELS:
