@@ -1,6 +1,6 @@
 """The rate-distortion benchmark of BENCHMARKS.md, in one command.
 
-    python benchmarks/rd_surfaces.py [--size 256] [--out out/rd-benchmark]
+    python benchmarks/rd_surfaces.py [--size 256] [--out out/rd-benchmark] [--results benchmarks]
 
 (from the repository root; ``out/`` is ignored by git).
 
@@ -19,7 +19,8 @@ Runs ``bandelets rd`` four times, on the surfaces the package generates and on t
 
 Each run writes its files, rd.csv and rd.png under ``OUT/NAME/``; the printed tables are
 collected in ``benchmarks/rd-results.md`` (one ``## NAME`` section per run) and the plots
-copied to ``benchmarks/rd-NAME.png``. ``--only NAME ...`` reruns some runs and replaces just
+copied to ``benchmarks/rd-NAME.png``; ``--results DIR`` puts those two elsewhere (a scratch run
+that should not touch the checkout's results). ``--only NAME ...`` reruns some runs and replaces just
 their sections. With a ``--size`` other than 256 the runs are named ``NAME-SIZE`` (for
 instance ``normal-maps-512``, the paper's resolution), so they sit beside the default ones.
 """
@@ -104,6 +105,9 @@ def main_benchmark() -> None:
         default=Path("../shared/data/meshes"),
         help="folder of fandisk.off and bunny.off (../shared/data/meshes)",
     )
+    parser.add_argument(
+        "--results", type=Path, default=HERE, help="folder of rd-results.md and the plots (benchmarks/)"
+    )
     parser.add_argument("--only", nargs="+", choices=RUNS, default=RUNS, help="runs to redo (default all)")
     args = parser.parse_args()
     inputs = args.out / "inputs"
@@ -130,11 +134,12 @@ def main_benchmark() -> None:
         runs["decay"] = [f"sample:edge-step@{s}", f"sample:edge-tangent@{s}", "--decay"]
     if "mesh-normals" in args.only and (paths := _mesh_normal_maps(args.meshes, s, inputs)):
         runs["mesh-normals"] = [*paths, "--kind", "normal-map", "--rates", MESH_NORMAL_RATES]
-    results = HERE / "rd-results.md"
+    args.results.mkdir(parents=True, exist_ok=True)
+    results = args.results / "rd-results.md"
     for name, argv in runs.items():
         name = name if s == DEFAULT_SIZE else f"{name}-{s}"
         _store(results, name, _run(["rd", *argv, "--out", str(args.out / name)]))
-        shutil.copyfile(args.out / name / "rd.png", HERE / f"rd-{name}.png")
+        shutil.copyfile(args.out / name / "rd.png", args.results / f"rd-{name}.png")
 
 
 if __name__ == "__main__":
