@@ -36,6 +36,23 @@ HEADER_SIZE = 42  # fixed fields, before the streams
 GEOMETRY_SIZE = 14  # options of a geometry image, after the fixed fields
 
 
+#: A normal map that is an octahedral geometry image (format version 14).
+FOLDED = Header(
+    height=64,
+    width=64,
+    channels=3,
+    kind="normal-map",
+    transform="bandelet",
+    wavelet="cdf97",
+    levels=5,
+    threshold=0.05,
+    frames=True,
+    normal_weight=NORMAL_MAP_WEIGHT,
+    lifting=2,
+    folded=True,
+)
+
+
 def _with_crc(body: bytes) -> bytes:
     return body + struct.pack("<I", zlib.crc32(body))
 
@@ -165,6 +182,7 @@ def test_the_types_of_the_names_are_the_coded_names():
             frames=True,
             normal_weight=2.5,
         ),
+        FOLDED,
     ],
 )
 def test_header_round_trip(header):
@@ -219,6 +237,27 @@ def test_options_a_file_does_not_store_must_be_the_implied_ones():
     ):
         with pytest.raises(ValueError, match="no choice"):
             pack(header, (b"", b"", b""))
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"channels": 2, "frames": False, "normal_weight": 1.0},
+        {"width": 32},
+        {"height": 48, "width": 48},  # padded at 5 levels
+        {"kind": "image", "frames": False, "normal_weight": 1.0},
+    ],
+)
+def test_only_a_square_unpadded_normal_map_of_three_channels_is_folded(changes):
+    pack(FOLDED, (b"", b"", b""))
+    with pytest.raises(ValueError, match="folded"):
+        pack(replace(FOLDED, **changes), (b"", b"", b""))
+
+
+def test_folded_flag_on_a_normal_map_that_cannot_be_folded_is_a_format_error(normal_file):
+    """The crease map of 32 x 32 is coded as two channels: it cannot be folded."""
+    with pytest.raises(FormatError, match="folded"):
+        bandelets.decode(_patched(normal_file, 41, "<B", normal_file[41] + 128))
 
 
 def test_bad_magic(small_file):
@@ -279,6 +318,7 @@ def test_truncated_header(small_file):
         (36, "<I", 0, "stream lengths"),
         (40, "<B", 101, "restoration iterations"),
         (41, "<B", 4, "directional levels"),
+        (41, "<B", 128, "folded"),  # a gray image
     ],
 )
 def test_absurd_fields_are_format_errors(small_file, offset, fmt, value, words):

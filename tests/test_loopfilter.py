@@ -91,14 +91,24 @@ def test_a_large_image_is_filtered_in_bands_of_rows_as_in_one(monkeypatch):
     np.testing.assert_array_equal(banded, loopfilter.apply(x, f, 0.5, 300, 260))
 
 
+def _folded_pad(x: np.ndarray, k: int) -> np.ndarray:
+    """``x`` (C, H, W) extended by ``k`` pixels past each edge as an octahedral geometry image is glued:
+    row ``-1 - a`` is row ``a`` reversed, column ``-1 - b`` is column ``b`` upside down (corners too)."""
+    rows = np.concatenate([x[:, k - 1 :: -1, ::-1], x, x[:, : -k - 1 : -1, ::-1]], axis=1)
+    return np.concatenate([rows[:, ::-1, k - 1 :: -1], rows, rows[:, ::-1, : -k - 1 : -1]], axis=2)
+
+
 @pytest.mark.parametrize(
-    ("radius", "cross", "square", "clip"), [(2, 0, False, 0), (3, 1, False, 3), (3, 2, True, 2)]
+    ("radius", "cross", "square", "clip", "folded"),
+    [(2, 0, False, 0, False), (3, 1, False, 3, False), (3, 2, True, 2, False), (3, 2, True, 2, True)],
 )
-def test_the_filter_is_the_clipped_second_differences_of_its_offsets(radius, cross, square, clip):
+def test_the_filter_is_the_clipped_second_differences_of_its_offsets(radius, cross, square, clip, folded):
     """``apply`` against numpy: each channel plus the weighted clipped second differences of its own
-    diamond or square and of the other channel's square, the border replicated."""
+    diamond or square and of the other channel's square, the border replicated, or ``folded``: the
+    samples past it those across the folds of an octahedral geometry image."""
     rng = np.random.default_rng(radius + cross)
-    x = rng.normal(size=(2, 19, 23))
+    side = 21 if folded else 19
+    x = rng.normal(size=(2, side, 23))
     n = filter_taps(radius, cross, 2, square)
     f = LoopFilter(
         radius=radius,
@@ -108,17 +118,19 @@ def test_the_filter_is_the_clipped_second_differences_of_its_offsets(radius, cro
         shift=6,
         coefficients=tuple(rng.integers(-40, 40, 2 * n)),
     )
-    out = loopfilter.apply(x, f, 0.5, 19, 23)
+    if folded:
+        x = x[:, :, :side]
+    out = loopfilter.apply(x, f, 0.5, *x.shape[1:], folded=folded)
     bound = loopfilter.clip_bound(clip, 0.5)
-    padded = np.pad(x, ((0, 0), (3, 3), (3, 3)), mode="edge")
+    padded = _folded_pad(x, 3) if folded else np.pad(x, ((0, 0), (3, 3), (3, 3)), mode="edge")
     for c in range(2):
         taps = [(c, o) for o in filter_offsets(radius, square)] + [
             (1 - c, o) for o in filter_cross_offsets(cross)
         ]
         expected = x[c].copy()
         for (k, (dy, dx)), w in zip(taps, f.coefficients[c * n : (c + 1) * n], strict=True):
-            plus = padded[k, 3 + dy : 3 + dy + 19, 3 + dx : 3 + dx + 23] - x[k]
-            minus = padded[k, 3 - dy : 3 - dy + 19, 3 - dx : 3 - dx + 23] - x[k]
+            plus = padded[k, 3 + dy : 3 + dy + side, 3 + dx : 3 + dx + x.shape[2]] - x[k]
+            minus = padded[k, 3 - dy : 3 - dy + side, 3 - dx : 3 - dx + x.shape[2]] - x[k]
             expected += w / 64 * (np.clip(plus, -bound, bound) + np.clip(minus, -bound, bound))
         np.testing.assert_allclose(out[c], expected, atol=1e-12)
 

@@ -39,8 +39,9 @@ def _log_penalty(squared_norm, smoothing, edge):
     return np.sum(edge * np.log1p(n / edge))
 
 
-def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0, folded=False):
+def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0, folded=False, second_across=False):
     """The restoration penalty written plainly with numpy, from its definition."""
+    rows, cols = x.shape[1:]
     dx = np.diff(x, axis=2, append=x[:, :, -1:])
     dy = np.diff(x, axis=1, append=x[:, -1:, :])
     first = _log_penalty(np.sum(dx**2 + dy**2, axis=0), smoothing, edge)
@@ -50,51 +51,71 @@ def _penalty(x, smoothing, edge, second_order=0.0, second_edge=1.0, folded=False
     xy[:, :-1, :-1] = np.diff(np.diff(x, axis=1), axis=2)
     second = _log_penalty(np.sum(xx**2 + yy**2 + 2 * xy**2, axis=0), smoothing, second_edge)
     if folded:  # each pair of pixels glued across an edge once, as on the sphere
-        rows, cols = x.shape[1:]
         pairs = [((e, j), (e, cols - 1 - j)) for e in (0, rows - 1) for j in range(cols // 2)]
         pairs += [((i, e), (rows - 1 - i, e)) for e in (0, cols - 1) for i in range(rows // 2)]
         across = np.array([x[:, p[0], p[1]] - x[:, q[0], q[1]] for p, q in pairs])
         first += _log_penalty(np.sum(across**2, axis=1), smoothing, edge)
+    if second_across:  # centred on every border pixel: its neighbour across the fold, itself, inside
+        triples = [
+            ((e, j), (e, cols - 1 - j), (n, j))
+            for e, n in ((0, 1), (rows - 1, rows - 2))
+            for j in range(cols)
+        ]
+        triples += [
+            ((i, e), (rows - 1 - i, e), (i, n))
+            for e, n in ((0, 1), (cols - 1, cols - 2))
+            for i in range(rows)
+        ]
+        folds = np.array([x[:, f[0], f[1]] - 2 * x[:, p[0], p[1]] + x[:, n[0], n[1]] for p, f, n in triples])
+        second += _log_penalty(np.sum(folds**2, axis=1), smoothing, second_edge)
     return first + second_order * second
 
 
 # A log total variation; the total variation; each with a log penalty on the second differences;
-# with the differences across the folds of an octahedral geometry image (odd and even sides).
+# with the differences across the folds of an octahedral geometry image (odd and even sides), and
+# the second differences across them (a folded normal map).
 @pytest.mark.parametrize(
-    "edge, second_order, folded, shape",
+    "edge, second_order, folded, second_across, shape",
     [
-        (0.05, 0.0, False, (2, 5, 7)),
-        (1e6, 0.0, False, (2, 5, 7)),
-        (0.05, 0.3, False, (2, 5, 7)),
-        (1e6, 2.0, False, (2, 5, 7)),
-        (0.05, 0.3, True, (2, 5, 7)),
-        (0.05, 0.3, True, (3, 6, 6)),
+        (0.05, 0.0, False, False, (2, 5, 7)),
+        (1e6, 0.0, False, False, (2, 5, 7)),
+        (0.05, 0.3, False, False, (2, 5, 7)),
+        (1e6, 2.0, False, False, (2, 5, 7)),
+        (0.05, 0.3, True, False, (2, 5, 7)),
+        (0.05, 0.3, True, False, (3, 6, 6)),
+        (0.05, 0.3, True, True, (2, 5, 7)),
+        (0.05, 0.3, True, True, (3, 6, 6)),
+        (0.05, 0.0, True, True, (2, 6, 6)),
     ],
 )
-def test_penalty_gradient_is_the_derivative(rng, edge, second_order, folded, shape):
+def test_penalty_gradient_is_the_derivative(rng, edge, second_order, folded, second_across, shape):
     x = rng.random(shape)
-    gradient = restoration.penalty_gradient(x, 0.1, edge, second_order, 0.2, folded=folded)
+    gradient = restoration.penalty_gradient(
+        x, 0.1, edge, second_order, 0.2, folded=folded, second_across=second_across
+    )
     h = 1e-6
     numeric = np.zeros_like(x)
     for index in np.ndindex(x.shape):
         step = np.zeros_like(x)
         step[index] = h
-        up, down = (_penalty(x + s, 0.1, edge, second_order, 0.2, folded) for s in (step, -step))
+        up, down = (
+            _penalty(x + s, 0.1, edge, second_order, 0.2, folded, second_across) for s in (step, -step)
+        )
         numeric[index] = (up - down) / (2 * h)
     np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-7)
 
 
 @pytest.mark.parametrize("shape", [(3, 9, 6), (1, 8, 5), (2, 33, 17)])
-@pytest.mark.parametrize("folded", [False, True])
-def test_the_gradient_in_two_threads_is_the_same_numbers(rng, monkeypatch, shape, folded):
+@pytest.mark.parametrize("folded, second_across", [(False, False), (True, False), (True, True)])
+def test_the_gradient_in_two_threads_is_the_same_numbers(rng, monkeypatch, shape, folded, second_across):
     """The rows split in two halves (each with the rows its stencils reach past the cut) give
     the same bits as one piece: the restoration's output must not depend on the thread count."""
     x = rng.standard_normal(shape)
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 2**62)
-    whole = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded)
+    whole = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded, second_across=second_across)
     monkeypatch.setattr(restoration, "THREADED_SAMPLES", 0)
     monkeypatch.setattr(restoration, "CORES", 2)
-    halves = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded)
+    halves = restoration.penalty_gradient(x, 0.01, 0.1, 0.5, 0.2, folded=folded, second_across=second_across)
     assert np.array_equal(whole, halves)
 
 

@@ -19,7 +19,8 @@ Layout (little endian)::
     28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
                   if the file has a loop filter (format version 11)
-    41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`)
+    41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`),
+                  plus 128 if the image is folded (format version 14, see below)
     42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
     42/56   ...   the three streams
     ...     ...   the loop filter (format version 11; when byte 40 says so)
@@ -67,8 +68,13 @@ lift each pair of samples of a block on its own (:data:`bandelets.directional.PA
 :data:`bandelets.directional.PAIR_AFTER`) and quantizes the finest wavelet level with a finer
 step, ``T / FINEST_WEIGHT`` (:data:`bandelets.wavelets.FINEST_WEIGHT`). Version 13 turns the
 first tangent of a normal map's local frames towards the direction along which its coarse normals
-turn most (:func:`bandelets.frames.normal_map_frames`), not the x axis projected. This build reads
-version 13 only.
+turn most (:func:`bandelets.frames.normal_map_frames`), not the x axis projected. Version 14 added the
+folded flag of a normal map (byte 41): the normals of a closed surface sampled on an octahedral
+geometry image (:func:`bandelets.normalmaps.octahedral`), glued across each edge to itself
+reversed, as a geometry image of spherical extension is; the restoration then takes the
+differences across those folds (:mod:`bandelets.restoration`). Only a lossy normal map of three
+channels, square, its side a multiple of ``2**levels``, may be folded. This build reads version
+14 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
@@ -172,7 +178,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 13
+FORMAT_VERSION = 14
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -411,6 +417,10 @@ class Header:
     lifting: int = 0
     #: The loop filter the decoder applies after the restoration (:mod:`bandelets.loopfilter`).
     loop_filter: LoopFilter | None = None
+    #: A normal map of three channels that is an octahedral geometry image, glued across its border
+    #: (:func:`bandelets.normalmaps.octahedral`; format version 14): the restoration works across the
+    #: folds. A geometry image says so by its spherical extension instead.
+    folded: bool = False
 
 
 def implied_options(kind: str, channels: int) -> dict:
@@ -457,10 +467,14 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.threshold,
         *(len(s) for s in streams),
         header.restoration + (128 if header.loop_filter is not None else 0),
-        header.lifting,
+        header.lifting + (128 if header.folded else 0),
     )
     if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
+    if header.folded and not _can_fold(
+        header.kind, header.channels, header.transform, header.levels, header.height, header.width
+    ):
+        raise ValueError(f"only a square normal map of 3 channels, unpadded, can be folded: {header}")
     if header.kind != "geometry-image":  # its options are not stored, so they must be the implied ones
         defaults = {
             "extension": Header.extension,
@@ -521,7 +535,8 @@ def unpack(
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
     kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
     height, width, threshold = fields[9:12]
-    lengths, restoration, filtered, lifting = fields[12:15], fields[15] % 128, fields[15] // 128, fields[16]
+    lengths, restoration, filtered = fields[12:15], fields[15] % 128, fields[15] // 128
+    lifting, folded = fields[16] % 128, fields[16] // 128
     depth, layout_code = depth % 64, depth // 64
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
@@ -561,6 +576,10 @@ def unpack(
         (
             lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
+        ),
+        (
+            not folded or _can_fold(kind, channels, transform, levels, height, width),
+            f"a folded {kind} of {channels} channels, {width} x {height} at {levels} levels",
         ),
         (
             lifting <= min(levels, MAX_LIFTING),
@@ -604,12 +623,26 @@ def unpack(
         layout=layout,
         lifting=lifting,
         loop_filter=loop_filter,
+        folded=bool(folded),
     )
     streams = []
     for n in lengths:
         streams.append(bytes(data[start : start + n]))
         start += n
     return header, tuple(streams)
+
+
+def _can_fold(kind: str, channels: int, transform: str, levels: int, height: int, width: int) -> bool:
+    """Whether a file of these fields may be folded (:attr:`Header.folded`): a lossy normal map of
+    three channels, square, its side a multiple of ``2**levels`` (not padded: the folds are the
+    border of the image the restoration sees)."""
+    return (
+        kind == "normal-map"
+        and channels == 3
+        and transform != LOSSLESS
+        and height == width
+        and height % (1 << levels) == 0
+    )
 
 
 def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width: int) -> dict:

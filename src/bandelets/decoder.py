@@ -130,7 +130,7 @@ def decode_parsed(
     channels = next(islice(restorations(header, trees, quantized, lifting), header.restoration, None))
     if header.loop_filter is not None:
         channels = loopfilter.apply(
-            channels, header.loop_filter, header.threshold, header.height, header.width
+            channels, header.loop_filter, header.threshold, header.height, header.width, header.folded
         )
     return decoded_image(channels, header)
 
@@ -160,7 +160,8 @@ def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifti
         header.threshold,
         *channel_transforms(header, trees, quantized, lifting),
         unit_vectors=(header.height, header.width) if unit else None,
-        folded=header.extension == "spherical",
+        folded=header.folded or header.extension == "spherical",
+        second_across=header.folded,
     )
 
 

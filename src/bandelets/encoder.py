@@ -387,12 +387,14 @@ def encode_with_stats(
         x = metrics.unit_vectors(x)
     levels = max_levels(x.shape[:2])
     geometry = geometry_options(options, x.shape[:2])
-    if options.extension == "spherical":  # no padding: the fold must stay on the image's border
-        while levels > 1 and x.shape[0] % (1 << levels):
-            levels -= 1
     # A map of normals that face one way is coded as two channels: the azimuthal equidistant
     # coordinates of its vectors (see bandelets.normalmaps), or x, y as given (BC5 sources).
     two = kind == "normal-map" and (layout != "xyz" or normalmaps.faces_one_way(x))
+    # The normals of a closed surface on an octahedral geometry image (never facing one way).
+    folded = kind == "normal-map" and not two and normalmaps.octahedral(x)
+    if options.extension == "spherical" or folded:  # no padding: the fold must stay on the image's border
+        while levels > 1 and x.shape[0] % (1 << levels):
+            levels -= 1
     equidistant = two and layout == "xyz"
     coded = (normalmaps.equidistant(x) if layout == "xyz" else given[..., :2]) if two else x
     # A normal map read from integer samples was converted to floats: that copy is not held.
@@ -418,6 +420,7 @@ def encode_with_stats(
             **geometry,
             layout=layout,
             lifting=lifting_levels,
+            folded=folded,
         )
         return encode_at_threshold(coefficients, header, lifting)
 
@@ -780,7 +783,7 @@ def _with_loop_filter(
     ``measure`` and (``keep``) its decoded image; ``to_error``: a score to the squared error."""
     header = encoded.header
     found, filtered = loopfilter.choose(
-        channels, targets, header.threshold, LAMBDA, lambda c: to_error(measure(c)), budget
+        channels, targets, header.threshold, LAMBDA, lambda c: to_error(measure(c)), budget, header.folded
     )
     if found is None:
         return replace(encoded, decoded=decoded_image(channels, header) if keep else None)

@@ -22,8 +22,11 @@ a normal map has a say in its ``y``, the two being derivatives of one height; th
 sees the mixed derivatives of the other channel over more pixels). Written as corrections by
 second differences, a constant image is left as it is and the rounding of the coefficients
 (``k / 2**shift``) costs only where there is detail. Samples past the image's border are those
-of the border (replicated); the filter reads and writes the ``H x W`` image, not the wavelet
-padding.
+of the border (replicated), or, in a file whose image is folded (a normal map that is an
+octahedral geometry image, :attr:`bandelets.bitstream.Header.folded`, format version 14), those
+across the folds: the border is then inside the surface, and the filter sees it so (+0.05 / +0.02
+dB on fandisk / bunny's normal maps, 0.25 to 2 bpp, BENCHMARKS.md "Normal maps on octahedral
+geometry images"). The filter reads and writes the ``H x W`` image, not the wavelet padding.
 
 The encoder (:func:`choose`) accumulates the normal equations of the largest diamond shape at
 each clipping of :data:`CLIPS` (one compiled pass each, on a regular sample of the rows of a large
@@ -112,18 +115,38 @@ def _clipped(d, bound):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _feature(x, c, o, dy, dx, i, j, rows, cols, channels, bound):
+def _feature(x, c, o, dy, dx, i, j, rows, cols, channels, bound, folded):
     """The clipped second difference ``clip(x[p + k] - x[p]) + clip(x[p - k] - x[p])`` of the
-    channel ``(c + o) % C`` at ``p = (i, j)``, ``k = (dy, dx)``, the border replicated."""
+    channel ``(c + o) % C`` at ``p = (i, j)``, ``k = (dy, dx)``, the border replicated, or
+    (``folded``) the samples past it those across the folds (:func:`_across`)."""
     k = (c + o) % channels
-    i1, j1 = min(max(i + dy, 0), rows - 1), min(max(j + dx, 0), cols - 1)
-    i2, j2 = min(max(i - dy, 0), rows - 1), min(max(j - dx, 0), cols - 1)
+    if folded:
+        i1, j1 = _across(i + dy, j + dx, rows, cols)
+        i2, j2 = _across(i - dy, j - dx, rows, cols)
+    else:
+        i1, j1 = min(max(i + dy, 0), rows - 1), min(max(j + dx, 0), cols - 1)
+        i2, j2 = min(max(i - dy, 0), rows - 1), min(max(j - dx, 0), cols - 1)
     v = x[k, i, j]
     return _clipped(x[k, i1, j1] - v, bound) + _clipped(x[k, i2, j2] - v, bound)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _across(i, j, rows, cols):
+    """The pixel at ``(i, j)``, at most a side past the border of an octahedral geometry image,
+    glued across each edge to itself reversed: row ``-k`` is row ``k - 1`` mirrored, and so on."""
+    if i < 0:
+        i, j = -1 - i, cols - 1 - j
+    elif i >= rows:
+        i, j = 2 * rows - 1 - i, cols - 1 - j
+    if j < 0:
+        i, j = rows - 1 - i, -1 - j
+    elif j >= cols:
+        i, j = rows - 1 - i, 2 * cols - 1 - j
+    return i, j
+
+
 @njit(cache=True, nogil=True)
-def _features(x, c, table, bound, start, stop, stride, out):
+def _features(x, c, table, bound, start, stop, stride, out, folded):
     """The features of channel ``c`` (:func:`_feature`) at the pixels of the rows ``start`` to
     ``stop`` by ``stride``, one column of ``out`` (taps x pixels) per pixel, in row order: along
     each row tap by tap inside (loops the compiler vectorises), pixel by pixel on the border."""
@@ -147,11 +170,11 @@ def _features(x, c, table, bound, start, stop, stride, out):
                 continue
             for t in range(n):
                 out[t, p + j] = _feature(
-                    x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound
+                    x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound, folded
                 )
 
 
-def _normal_equations(x, residual, table, bound, stride):
+def _normal_equations(x, residual, table, bound, stride, folded):
     """``gram[c] = A_c' A_c`` and ``moment[c] = A_c' residual_c``, shapes (C, n, n) and (C, n),
     with ``A_c`` the features of channel ``c`` of ``x`` at the pixels of every ``stride``-th row
     (``residual``: the target minus ``x`` at those rows, shape (C, rows, W)), scaled as if from
@@ -165,7 +188,9 @@ def _normal_equations(x, residual, table, bound, stride):
     for c in range(channels):
         for first in range(0, residual.shape[1], block):
             count = min(block, residual.shape[1] - first) * cols
-            _features(x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f)
+            _features(
+                x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f, folded
+            )
             f[n, :count] = residual[c, first : first + block].ravel()
             if n < _BLAS_ROWS:
                 total[c] += f[:, :count] @ f[:, :count].T
@@ -203,7 +228,7 @@ _BLOCK = 2**13
 
 
 @njit(cache=True, nogil=True)
-def _apply(x, table, weights, bound, out, first, last):
+def _apply(x, table, weights, bound, out, first, last, folded):
     """``out[c] = x[c] + sum_t weights[c, t] feature_t`` (float64) over the rows ``first`` to
     ``last``, the taps in the order of ``table`` (:func:`_feature`): inside, tap by tap along each
     row (loops the compiler vectorises), on the border pixel by pixel; the same numbers either way."""
@@ -232,16 +257,22 @@ def _apply(x, table, weights, bound, out, first, last):
                 acc = 0.0
                 for t in range(n):
                     acc += weights[c, t] * _feature(
-                        x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound
+                        x, c, table[t, 0], table[t, 1], table[t, 2], i, j, rows, cols, channels, bound, folded
                     )
                 out[c, i, j] = x[c, i, j] + acc
 
 
 def apply(
-    channels: np.ndarray, loop_filter: LoopFilter, threshold: float, height: int, width: int
+    channels: np.ndarray,
+    loop_filter: LoopFilter,
+    threshold: float,
+    height: int,
+    width: int,
+    folded: bool = False,
 ) -> np.ndarray:
     """The filtered image: ``channels`` (C, H', W'), padded, filtered over their first ``height``
-    rows and ``width`` columns (``threshold``: the file's ``T``, the unit of the clipping).
+    rows and ``width`` columns (``threshold``: the file's ``T``, the unit of the clipping;
+    ``folded``: the samples past the border are those across the folds, see the module's docstring).
 
     Returns
     -------
@@ -253,12 +284,14 @@ def apply(
     out = np.empty_like(x)
     bound, rows = clip_bound(loop_filter.clip, threshold), x.shape[1]
     if CORES == 1 or rows * x.shape[2] < THREADED_PIXELS:
-        _apply(x, table, weights, bound, out, 0, rows)
+        _apply(x, table, weights, bound, out, 0, rows, folded)
         return out
     # Bands of rows in threads (the kernel releases the GIL; every pixel is computed on its own).
     edges = np.linspace(0, rows, min(CORES, 8) + 1).astype(int)
     with ThreadPoolExecutor(len(edges) - 1, thread_name_prefix="bandelets-loop-filter") as pool:
-        for done in [pool.submit(_apply, x, table, weights, bound, out, a, b) for a, b in pairwise(edges)]:
+        for done in [
+            pool.submit(_apply, x, table, weights, bound, out, a, b, folded) for a, b in pairwise(edges)
+        ]:
             done.result()
     return out
 
@@ -303,6 +336,7 @@ def choose(
     lam: float,
     error: Callable[[np.ndarray], float],
     budget: int | None = None,
+    folded: bool = False,
 ) -> tuple[LoopFilter | None, np.ndarray | None]:
     """The filter of least ``error + lam T**2 bits``, or none.
 
@@ -325,6 +359,9 @@ def choose(
         summed, in the units of ``T**2``: the measure the choice trusts.
     budget : int, optional
         Most bytes the filter section may take.
+    folded : bool
+        The image is folded (see the module's docstring): the samples past its border are those
+        across the folds.
 
     Returns
     -------
@@ -338,7 +375,9 @@ def choose(
     shapes = [shape for shape in SHAPES if shape[1] <= _most_cross(count)]
     stride = max(1, height * width // FIT_PIXELS)
     residual = target[:, ::stride] - x[:, ::stride]  # float64, as x
-    fit = partial(_proposal, x, residual, threshold=threshold, stride=stride, price=price, budget=budget)
+    fit = partial(
+        _proposal, x, residual, threshold=threshold, stride=stride, price=price, budget=budget, folded=folded
+    )
     proposal, proposal_cost = None, 0.0
     for clip in CLIPS:
         cost, found = fit([shape for shape in shapes if not shape[2]], clip)
@@ -360,19 +399,19 @@ def choose(
         shift=shift,
         coefficients=tuple(q.ravel().tolist()),
     )
-    out = apply(x, found, threshold, height, width)
+    out = apply(x, found, threshold, height, width, folded)
     if error(out) + price * bits >= error(x):
         return None, None
     return found, out
 
 
-def _proposal(x, residual, shapes, clip, *, threshold, stride, price, budget):
+def _proposal(x, residual, shapes, clip, *, threshold, stride, price, budget, folded):
     """The least predicted cost (below 0) of the ``shapes`` at ``clip`` and its ``(shape, clip,
     shift, integers, bits)`` (None if none is below 0), from the normal equations of the largest."""
     count = x.shape[0]
     full = _table(*max(shapes, key=lambda shape: _taps(shape, count)), count)
     rows = [tuple(r) for r in full.tolist()]
-    gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride)
+    gram, moment = _normal_equations(x, residual, full, clip_bound(clip, threshold), stride, folded)
     best, best_cost = None, 0.0
     for shape in shapes:
         pick = [rows.index(tuple(r)) for r in _table(*shape, count).tolist()]

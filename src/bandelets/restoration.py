@@ -63,7 +63,16 @@ with the symmetric extension, so nothing in their files says so), it would resto
 (``benchmarks/restoration_variants.py --maps fandisk,bunny``, +0.18 dB at 0.25 bpp on fandisk). A
 second-order term at the border with the whole-sample symmetric extension of the wavelets (``xx = 2 dx``
 on the border) lost there: -0.06 / -0.02 dB (it pulls the slope at the border to 0, the second
-differences' free end, 0 on the border, is kept).
+differences' free end, 0 on the border, is kept). Since format version 14 the normal maps that are
+octahedral geometry images say so (:attr:`bandelets.bitstream.Header.folded`) and are restored across
+their folds too, and their second-order term also takes, centred on every border pixel, the second
+difference through its neighbour across the fold and the one inside (``second_across``, a term of its
+own, joint over the channels): on the same files of fandisk / bunny's normal maps (0.25 to 2 bpp) the
+restored PSNR is +0.069 / +0.026 dB with the first-order folds, +0.099 / +0.044 dB with both (+0.23 /
++0.09 dB at 0.25 bpp; BENCHMARKS.md, "Normal maps on octahedral geometry images"). Not on the
+geometry images: coded with the spherical extension, their border is already coded across the folds,
+and the second differences there lose (restoration gain of the positions of fandisk / bunny, 0.25 to 2
+bpp: 1.266 -> 1.199 / 0.574 -> 0.553 dB).
 
 Written here (compiled loops for the gradient, the steps, the renormalisation and the projection
 into the bins) because no library offers such a reconstruction constrained in an arbitrary (here
@@ -154,6 +163,7 @@ def penalty_gradient(
     second_edge: float = 1.0,
     out: np.ndarray | None = None,
     folded: bool = False,
+    second_across: bool = False,
 ) -> np.ndarray:
     """Gradient of the restoration penalty: a vectorial log total variation
     ``sum edge log(1 + n / edge)``, where ``n = sqrt(sum_c |grad x_c|**2 + smoothing**2)`` at every
@@ -181,6 +191,11 @@ def penalty_gradient(
         pixel also has a neighbour across the edge (the pixel ``(0, W - 1 - j)`` for ``(0, j)``,
         ``(H - 1 - i, 0)`` for ``(i, 0)``, the same on the other edges), and each such pair adds a
         term ``edge log(1 + n / edge)`` with ``n = sqrt(sum_c (x_c - y_c)**2 + smoothing**2)``.
+    second_across : bool
+        With ``folded``, each border pixel ``p`` (each corner twice, once per edge) also adds
+        ``second_order`` times the term of corner ``second_edge`` of the second difference through
+        it, ``y - 2 p + z``, ``y`` its neighbour across the edge and ``z`` the one inside (format
+        version 14, normal maps).
 
     Notes
     -----
@@ -194,13 +209,21 @@ def penalty_gradient(
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty_like(x) if out is None else out
-    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0, folded)
+    folds = _folds(folded, second_across)
+    _in_halves(x, (smoothing, edge, second_order, second_edge), -1.0, out, out, 0.0, 0, 0, folds)
     return out
 
 
-def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, folded=False) -> None:
+def _folds(folded: bool, second_across: bool) -> int:
+    """The terms across the folds :func:`_rows` adds: 0 none, 1 the first differences, 2 the second
+    ones too."""
+    return int(folded) + int(folded and second_across)
+
+
+def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, folds=0) -> None:
     """:func:`_rows` over all the rows of ``x``: in two threads, a half of the rows each, from
-    :data:`THREADED_SAMPLES` pixels on (each row is the same numbers whichever thread computes it)."""
+    :data:`THREADED_SAMPLES` pixels on (each row is the same numbers whichever thread computes it);
+    ``folds``: :func:`_folds`."""
     rows, cols = x.shape[1:]
     smoothing, edge, second_order, second_edge = (float(c) for c in constants)
     # In units of the smoothing (the gradient does not change when x and the constants are scaled
@@ -209,7 +232,7 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, 
     # The differences and the step in the images' type (float32 images: twice the samples to a vector).
     real = x.dtype.type
     args = (x, real(1.0 / smoothing), real(_LARGEST), *scaled, real(step), out, previous, real(weight))
-    args = (*args, int(unit_rows), int(unit_cols), bool(folded))
+    args = (*args, int(unit_rows), int(unit_cols), int(folds))
     if rows * cols < THREADED_SAMPLES or rows < 8 or CORES < 2:
         _rows(*args, 0, rows)
         return
@@ -264,7 +287,7 @@ def _rows(
     weight,
     unit_rows,
     unit_cols,
-    folded,
+    folds,
     start,
     stop,
 ):
@@ -274,7 +297,7 @@ def _rows(
     (out - previous)``, in place; other rows of ``out`` and ``previous`` are left untouched.
     ``scale``: the inverse of the smoothing, ``largest``: :data:`_LARGEST`, ``step``, ``weight``:
     of the type of ``x``; ``edge``, ``second_order``, ``second_edge``: float32, the first and last
-    in units of the smoothing.
+    in units of the smoothing; ``folds``: the terms across the folds (:func:`_folds`).
 
     One pass over the image: what a row's stencils reach in the rows above and below (the weighted
     differences, :func:`_row_terms`) is made a row ahead into rings of four rows, so what they read
@@ -298,8 +321,10 @@ def _rows(
             _row_terms(x, i + 1, *constants, s, w, px, py, a, b, d, dy)
         for c in range(channels):
             _divergence_row(i, rows, px[c], py[c], a[c], b[c], d[c], constants[-1], g[c])
-        if folded:
+        if folds:
             _across_folds(x, i, scale, largest, edge, g)
+            if folds == 2 and second_order > 0.0:
+                _second_across_folds(x, i, scale, largest, second_order, second_edge, g)
         if step < 0.0:
             for c in range(channels):
                 out[c, i] = g[c]
@@ -459,6 +484,44 @@ def _across_folds(x, i, scale, largest, edge, g):
     _fold_pair(x, i, cols - 1, rows - 1 - i, cols - 1, scale, largest, edge, g)
 
 
+@njit(cache=True, nogil=True)
+def _second_across_folds(x, i, scale, largest, second_order, second_edge, g):
+    """Adds to ``g`` (row ``i`` of the gradient, all channels) the terms of the second differences
+    across the folds that reach row ``i`` (see :func:`penalty_gradient`): centred on each border pixel
+    ``p``, ``x[f] - 2 x[p] + x[n]``, ``f`` its neighbour across the fold and ``n`` the one inside."""
+    rows, cols = x.shape[1:]
+    constants = (scale, largest, second_order, second_edge)
+    for edge, inside in ((0, 1), (rows - 1, rows - 2)):  # the first and last rows
+        if i == edge:
+            for j in range(cols):
+                m = cols - 1 - j
+                _second_term(x, (edge, j), (edge, m), (inside, j), -2.0, j, constants, g)
+                _second_term(x, (edge, m), (edge, j), (inside, m), 1.0, j, constants, g)
+        elif i == inside:
+            for j in range(cols):
+                _second_term(x, (edge, j), (edge, cols - 1 - j), (inside, j), 1.0, j, constants, g)
+    m = rows - 1 - i
+    for edge, inside in ((0, 1), (cols - 1, cols - 2)):  # the first and last columns
+        _second_term(x, (i, edge), (m, edge), (i, inside), -2.0, edge, constants, g)
+        _second_term(x, (m, edge), (i, edge), (m, inside), 1.0, edge, constants, g)
+        _second_term(x, (i, edge), (m, edge), (i, inside), 1.0, inside, constants, g)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _second_term(x, p, f, n, coefficient, j, constants, g):
+    """``g[:, j] += coefficient w D``, ``D = x[:, f] - 2 x[:, p] + x[:, n]`` (pixels ``(row, column)``)
+    and ``w`` ``second_order`` times the weight of that joint second difference (``constants``:
+    ``scale, largest, second_order, second_edge``, see :func:`_rows`)."""
+    scale, largest, second_order, second_edge = constants
+    s = np.float32(0.0)
+    for c in range(x.shape[0]):
+        e = _scaled(x[c, f[0], f[1]] - 2.0 * x[c, p[0], p[1]] + x[c, n[0], n[1]], scale, largest)
+        s += e * e
+    w = second_order * _log_weight(s, second_edge) * np.float32(coefficient)
+    for c in range(x.shape[0]):
+        g[c, j] += _scaled(x[c, f[0], f[1]] - 2.0 * x[c, p[0], p[1]] + x[c, n[0], n[1]], scale, largest) * w
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _fold_pair(x, i, j, m, n, scale, largest, edge, g):
     """``g[:, j] += w (x[:, i, j] - x[:, m, n])``, ``w`` the weight of that joint difference."""
@@ -493,6 +556,7 @@ def iterate(
     synthesis: Callable[[np.ndarray], np.ndarray],
     unit_vectors: tuple[int, int] | None = None,
     folded: bool = False,
+    second_across: bool = False,
 ) -> Iterator[np.ndarray]:
     """The restored channels, after 0, 1, 2, ... iterations (without end).
 
@@ -511,8 +575,10 @@ def iterate(
         back to unit length before the projection into the bins (+0.2 to +0.4 dB on the
         fandisk normal map at 0.25 to 1 bpp, measured with the plain total variation).
     folded : bool
-        The channels are an octahedral geometry image (the file's spherical extension): the
-        penalty also takes the differences across its folds (:func:`penalty_gradient`).
+        The channels are an octahedral geometry image (the file's spherical extension, or a folded
+        normal map): the penalty also takes the differences across its folds (:func:`penalty_gradient`).
+    second_across : bool
+        And the second differences across them (a folded normal map; :func:`penalty_gradient`).
 
     Yields
     ------
@@ -539,6 +605,7 @@ def iterate(
     spare = np.empty_like(x)
     constants = (SMOOTHING * threshold, EDGE * threshold, SECOND_ORDER, SECOND_EDGE * threshold)
     unit = (0, 0) if unit_vectors is None else unit_vectors
+    folds = _folds(folded, second_across)
     # The coefficients of a projection (float64; float32 images are copied into it): made once, not at
     # every projection.
     wide = None
@@ -547,7 +614,7 @@ def iterate(
         weight = (t - 1.0) / t_next
         project = k % PROJECT_EVERY == 0
         # The step, and unless it projects, the momentum into x: one pass over the image.
-        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit, folded)
+        _in_halves(ahead, constants, STEP * threshold, spare, x, -1.0 if project else weight, *unit, folds)
         if project:
             if dtype == np.float64:  # the images' buffers swap roles: spare is not always the same one
                 wide = spare

@@ -62,6 +62,17 @@ def geometry_image_32() -> np.ndarray:
     return np.stack([r * np.sin(theta) * np.cos(phi), r * np.sin(theta) * np.sin(phi), r * np.cos(theta)], -1)
 
 
+def octahedral_32() -> np.ndarray:
+    """32 x 32 normal map of an ellipsoid on an octahedral geometry image (the plain octahedral
+    unfolding of the sphere: each edge glued to itself reversed), coded folded (format version 14)."""
+    v, u = (np.mgrid[0:32, 0:32].astype(np.float64) + 0.5) / 16.0 - 1.0
+    z = 1.0 - np.abs(u) - np.abs(v)
+    x = np.where(z < 0, (1.0 - np.abs(v)) * np.sign(u), u)
+    y = np.where(z < 0, (1.0 - np.abs(u)) * np.sign(v), v)
+    n = np.stack([x, y, z], axis=-1) / np.array([1.0, 0.7, 0.4])
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
 def bumps_32_samples() -> np.ndarray:
     """The bumps map as 8-bit samples (uint8), as a PNG holds it."""
     return np.round((bumps_32() + 1.0) / 2.0 * 255.0).astype(np.uint8)
@@ -96,6 +107,7 @@ GOLDEN = {
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
     "bumps32.bdl": (bumps_32, {"threshold": 0.05, "kind": "normal-map", "transform": "bandelet"}),
+    "octahedral32.bdl": (octahedral_32, {"threshold": 0.02, "kind": "normal-map", "transform": "bandelet"}),
     "bumps32-lossless.bdl": (bumps_32_samples, {"kind": "normal-map", "lossless": True}),
     "gray16-lossless.bdl": (gray_16_samples, {"kind": "image", "depth": 16, "lossless": True}),
     "geometry32.bdl": (
