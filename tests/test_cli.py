@@ -135,6 +135,7 @@ def test_info_names_the_local_frames_of_a_normal_map(tmp_path, capsys):
     info = json.loads(_ok(capsys, "info", bdl))
     assert (info["channels"], info["frames"], info["normal_weight"]) == (3, True, 0.35)
     assert "extension" not in info
+    assert info["folded"] is False  # not an octahedral geometry image (bandelets.normalmaps.octahedral)
 
 
 def test_16_bit_rgb_normal_map(tmp_path, capsys, crease_map):

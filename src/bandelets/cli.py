@@ -496,7 +496,7 @@ def _info(args) -> None:
     if header.kind == "geometry-image":
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
     if header.kind == "normal-map":
-        info["layout"] = header.layout
+        info |= {"layout": header.layout, "folded": header.folded}
     if header.kind == "geometry-image" or header.frames:
         info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))
