@@ -18,10 +18,15 @@ pixels`` of that file and every PSNR that of the vectors it decodes to, renormal
 the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). The codecs:
 
 * ``lifting``: ``bandelets encode --kind normal-map --bpp B``, the defaults (CDF 9/7, bandelets,
-  restoration, the two finest levels lifted along directions where they pay);
+  restoration, the two finest levels lifted along directions where they pay, or the two channels
+  coded as their Riesz pair where that pays);
 * ``unfiltered``: the defaults without the loop filter (``--no-loop-filter``);
 * ``bandelet``: the defaults without the directional lifting (``--no-lifting``);
-* ``wavelet``: the same coder without any geometry (``--transform wavelet --no-lifting``);
+* ``pairless``: the defaults without the Riesz pair (``--no-riesz``: the two channels as they are);
+* ``wavelet``: the same coder without any geometry (``--transform wavelet --no-lifting``; the
+  Riesz pair where it pays, as in the defaults);
+* ``plain``: the same coder without any geometry nor the Riesz pair (``--transform wavelet
+  --no-lifting --no-riesz``: the coder of format version 14 without geometry);
 * the anchors as :mod:`bandelets.anchors` drives them (8-bit samples, as the PNG): OpenJPEG,
   libavif (4:4:4, identity matrix, speed 2), libjxl (effort 9).
 
@@ -70,7 +75,9 @@ OURS = {
     "lifting": {},
     "unfiltered": {"loop_filter": False},
     "bandelet": {"lifting": False},
+    "pairless": {"riesz": False},
     "wavelet": {"transform": "wavelet", "lifting": False},
+    "plain": {"transform": "wavelet", "lifting": False, "riesz": False},
 }
 CODECS = (*OURS, "jpeg2000", "avif", "jpegxl")
 #: Rendered object-space maps: mesh, its axis turned up, crease angle (degrees), view.

@@ -20,6 +20,8 @@ Layout (little endian)::
     40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
                   if the file has a loop filter (format version 11)
     41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`),
+                  plus 32 if the two channels of a normal map are coded as their Riesz pair,
+                  64 more if its rows run against the slope (format version 15, see below),
                   plus 128 if the image is folded (format version 14, see below)
     42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
     42/56   ...   the three streams
@@ -73,8 +75,10 @@ folded flag of a normal map (byte 41): the normals of a closed surface sampled o
 geometry image (:func:`bandelets.normalmaps.octahedral`), glued across each edge to itself
 reversed, as a geometry image of spherical extension is; the restoration then takes the
 differences across those folds (:mod:`bandelets.restoration`). Only a lossy normal map of three
-channels, square, its side a multiple of ``2**levels``, may be folded. This build reads version
-14 only.
+channels, square, its side a multiple of ``2**levels``, may be folded. Version 15 may code the two
+channels of a lossy normal map as their Riesz pair (byte 41, :attr:`Header.riesz`,
+:mod:`bandelets.riesz`): the channel along the gradients of a height and the one across them; the
+decoder turns them back at the end of every synthesis. This build reads version 15 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
@@ -178,7 +182,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 14
+FORMAT_VERSION = 15
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -421,6 +425,9 @@ class Header:
     #: (:func:`bandelets.normalmaps.octahedral`; format version 14): the restoration works across the
     #: folds. A geometry image says so by its spherical extension instead.
     folded: bool = False
+    #: A normal map of two channels coded as their Riesz pair (:mod:`bandelets.riesz`; format version
+    #: 15): 0 not, else the ``sign`` of :func:`bandelets.riesz.forward` (1 or -1).
+    riesz: int = 0
 
 
 def implied_options(kind: str, channels: int) -> dict:
@@ -467,7 +474,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.threshold,
         *(len(s) for s in streams),
         header.restoration + (128 if header.loop_filter is not None else 0),
-        header.lifting + (128 if header.folded else 0),
+        header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
     )
     if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
@@ -475,6 +482,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.kind, header.channels, header.transform, header.levels, header.height, header.width
     ):
         raise ValueError(f"only a square normal map of 3 channels, unpadded, can be folded: {header}")
+    if header.riesz and not _can_turn(header.kind, header.channels, header.transform):
+        raise ValueError(f"only a lossy normal map of 2 channels can be coded as its Riesz pair: {header}")
     if header.kind != "geometry-image":  # its options are not stored, so they must be the implied ones
         defaults = {
             "extension": Header.extension,
@@ -536,7 +545,7 @@ def unpack(
     kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
     height, width, threshold = fields[9:12]
     lengths, restoration, filtered = fields[12:15], fields[15] % 128, fields[15] // 128
-    lifting, folded = fields[16] % 128, fields[16] // 128
+    lifting, riesz, folded = fields[16] % 32, _RIESZ_OF.get(fields[16] // 32 % 4), fields[16] // 128
     depth, layout_code = depth % 64, depth // 64
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
@@ -582,6 +591,10 @@ def unpack(
             f"a folded {kind} of {channels} channels, {width} x {height} at {levels} levels",
         ),
         (
+            riesz is not None and (not riesz or _can_turn(kind, channels, transform)),
+            f"Riesz code {fields[16] // 32 % 4} for a {kind} of {channels} channels ({transform})",
+        ),
+        (
             lifting <= min(levels, MAX_LIFTING),
             f"{lifting} directional levels (at most {MAX_LIFTING}, {levels} levels)",
         ),
@@ -624,12 +637,29 @@ def unpack(
         lifting=lifting,
         loop_filter=loop_filter,
         folded=bool(folded),
+        riesz=riesz,
     )
     streams = []
     for n in lengths:
         streams.append(bytes(data[start : start + n]))
         start += n
     return header, tuple(streams)
+
+
+#: Byte 41's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
+_RIESZ_CODES = {0: 0, 1: 1, -1: 3}
+_RIESZ_OF = {code: sign for sign, code in _RIESZ_CODES.items()}
+
+
+def _riesz_code(riesz: int) -> int:
+    if riesz not in _RIESZ_CODES:
+        raise ValueError(f"Header.riesz is 0, 1 or -1, not {riesz!r}")
+    return 32 * _RIESZ_CODES[riesz]
+
+
+def _can_turn(kind: str, channels: int, transform: str) -> bool:
+    """Whether a file of these fields may be coded as a Riesz pair (:attr:`Header.riesz`)."""
+    return kind == "normal-map" and channels == 2 and transform != LOSSLESS
 
 
 def _can_fold(kind: str, channels: int, transform: str, levels: int, height: int, width: int) -> bool:

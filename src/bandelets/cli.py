@@ -134,6 +134,13 @@ def _build_parser() -> argparse.ArgumentParser:
         "an angle; default: on for normal maps where the directions pay)",
     )
     p.add_argument(
+        "--riesz",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="code a normal map's two channels as their Riesz pair: one channel along the gradients of a "
+        "height, one across them (maps baked from height fields; default: where it pays)",
+    )
+    p.add_argument(
         "--tile",
         type=int,
         default=0,
@@ -387,6 +394,7 @@ def _encode(args) -> None:
         max_memory=args.max_memory,
         xy=args.xy,
         lifting=args.lifting,
+        riesz=args.riesz,
         tile=args.tile,
         lossless=True if args.lossless else False if args.no_lossless else None,
     )
@@ -473,6 +481,7 @@ def _info(args) -> None:
         "threshold": header.threshold,
         "restoration": header.restoration,
         "lifting_levels": header.lifting,
+        "riesz": header.riesz,
         "loop_filter": None
         if header.loop_filter is None
         else {

@@ -11,7 +11,7 @@ from itertools import islice
 
 import numpy as np
 
-from . import directional, entropy, frames, loopfilter, lossless, metrics, restoration, tiling
+from . import directional, entropy, frames, loopfilter, lossless, metrics, restoration, riesz, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
 from .coding import code_image, code_lifting, new_coders
@@ -203,8 +203,12 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
         level_frames = frames.to_global(decoded, *args, header.normal_weight, header.kind)
 
     # In place, channel by channel: no copy of the image.
+    sign, precision = header.riesz, riesz.precision(header.threshold)
+
     def analysis(x: np.ndarray) -> np.ndarray:  # overwrites x
         c = x
+        if sign:  # the channels' Riesz pair is what the wavelets code
+            x[0], x[1] = riesz.forward(x[0].astype(precision), x[1].astype(precision), sign)
         if lifting is not None:
             each(lambda k: directional.transform(x[k], levels, header.lifting, lifting), range(len(c)))
         else:
@@ -225,6 +229,8 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
             )
         else:
             each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
+        if sign:
+            c[0], c[1] = riesz.inverse(c[0].astype(precision), c[1].astype(precision), sign)
         return c
 
     return analysis, synthesis

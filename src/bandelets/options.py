@@ -87,6 +87,7 @@ class EncodeOptions:
     mesh_vertices: int = 0
     tile: int = 0
     lossless: bool | None = None
+    riesz: bool | None = None
 
     def __post_init__(self) -> None:
         if self.lossless not in (None, True, False):
@@ -101,6 +102,12 @@ class EncodeOptions:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.xy and self.kind != "normal-map":
             raise ValueError("xy applies to normal maps only")
+        if self.riesz not in (None, True, False):
+            raise ValueError(f"riesz must be None, True or False, got {self.riesz!r}")
+        if self.riesz and self.kind != "normal-map":
+            raise ValueError("riesz applies to normal maps only (their two channels)")
+        if self.riesz and self.lifting:
+            raise ValueError("a Riesz pair is not lifted along directions: give riesz or lifting, not both")
         if self.depth not in (0, 8, 16):
             raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
         check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))

@@ -107,6 +107,10 @@ GOLDEN = {
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
     "bumps32.bdl": (bumps_32, {"threshold": 0.05, "kind": "normal-map", "transform": "bandelet"}),
+    "bumps32-riesz.bdl": (
+        bumps_32,
+        {"threshold": 0.02, "kind": "normal-map", "transform": "bandelet", "riesz": True},
+    ),
     "octahedral32.bdl": (octahedral_32, {"threshold": 0.02, "kind": "normal-map", "transform": "bandelet"}),
     "bumps32-lossless.bdl": (bumps_32_samples, {"kind": "normal-map", "lossless": True}),
     "gray16-lossless.bdl": (gray_16_samples, {"kind": "image", "depth": 16, "lossless": True}),
