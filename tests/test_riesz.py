@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import zlib
 from dataclasses import replace
 
@@ -122,3 +123,18 @@ def test_a_rate_target_tries_the_pair_where_it_nearly_pays_and_keeps_the_better(
     for choice in (True, False):
         other = bandelets.encode(crease, bpp=1.0, kind="normal-map", riesz=choice)
         assert best >= metrics.psnr(crease, bandelets.decode(other), "normal-map")
+
+
+def test_the_command_line_asks_for_the_pair_and_info_says_so(tmp_path, capsys):
+    from bandelets.cli import main
+
+    npy, bdl = tmp_path / "bumps.npy", tmp_path / "bumps.bdl"
+    np.save(npy, height_normals(32))
+    encode = ["encode", str(npy), "--kind", "normal-map", "--threshold", "0.02"]
+    assert main([*encode, str(bdl), "--riesz", "-q"]) == 0
+    assert main(["info", str(bdl)]) == 0
+    assert json.loads(capsys.readouterr().out)["riesz"] in (1, -1)
+    status = main([*encode, str(tmp_path / "x.bdl"), "--riesz", "--lifting"])
+    err = capsys.readouterr().err
+    assert status == 2 and "riesz or lifting, not both" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.bdl").exists()

@@ -737,16 +737,18 @@ def _lifted(
     return plain, None, 0, (lifted, fields, lifting_levels) if close < TRIAL_BELOW else None
 
 
-#: Where the Riesz pair's :func:`bandelets.directional.cost` over that of the file without it (lifted
-#: or not) is below this, the pair is coded (:func:`_riesz_pair`); where it is below
-#: :data:`RIESZ_TRIAL_BELOW`, a rate target encodes both files and keeps the better. The estimate
-#: misses what the context coder makes of a pair: files at ratios of 1.03 to 1.16 gained 0.9 to 4.7
-#: dB with it (the 256 x 256 bevel map at 0.25 and 2 bpp, the crease map at 0.25 and 0.5, the bumps
-#: at 2), those at 1.41 and above lost 0.3 to 11 dB (the lava flow at every rate, the crease map
-#: from 1 bpp); below 1, every file measured gained (0.998 to 0.78: bevel, bumps) but the acacia
-#: door at 0.25 bpp (0.935, -0.04 dB). BENCHMARKS, "The Riesz pair of a normal map".
-RIESZ_PAYS_BELOW = 1.0
-RIESZ_TRIAL_BELOW = 1.3
+#: Where the Riesz pair's :func:`bandelets.directional.cost` over that of the channels (lifted or
+#: not) is below this, the pair is coded (:func:`_riesz_pair`); where it is below
+#: :data:`RIESZ_TRIAL_BELOW`, a rate target encodes both files and keeps the better (else the
+#: channels). The estimate misses much of what the context coder makes of a pair: of the files of
+#: the maps of issue 15 at 0.25 to 2 bpp (BENCHMARKS, "The Riesz pair of a normal map"), every one
+#: at a ratio of 0.91 or less gained with it (+0.7 to +4.1 dB: bevel, bumps), but between 0.93 and
+#: 1.5 some gained up to 1.8 dB (bevel, bumps, acacia door, crease at 0.25 bpp, 1.50 at 512) and
+#: others lost up to 1.7 dB (acacia door at 0.25 bpp, 0.94; bunny from the top at 0.35 and 0.5 bpp,
+#: 0.99 and 1.08); above 1.5 only losses (0.3 to 24 dB: lava flow, fandisk from the top, crease
+#: from 1 bpp).
+RIESZ_PAYS_BELOW = 0.9
+RIESZ_TRIAL_BELOW = 1.6
 
 
 def _riesz_pair(
