@@ -13,9 +13,13 @@ a child process whose high-water mark is reset once the map or file is made, Lin
 8192 x 8192 on, the map is held as 8-bit samples, as read from a PNG: its float64 array alone
 would take 1.5 GiB). Maps are coded as the library's default does (in one piece when that fits
 the memory limit, in tiles of 512 above: :func:`bandelets.memory.tile_side`), or in tiles of
-``--tile`` at any size.
+``--tile`` at any size. ``--map bevel``: the generated 8-bit bevel map instead
+(:func:`bandelets.samples.bevel_normal_map`, given to us as its samples, to the anchors as its
+vectors, as the crease map is), whose files are Riesz pairs (:mod:`bandelets.riesz`); with
+``--no-riesz``, its channels.
 
     python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start] [--tile 512]
+    python benchmarks/speed.py --map bevel --sizes 512 [--no-riesz]
 """
 
 from __future__ import annotations
@@ -33,9 +37,16 @@ import imagecodecs
 import numpy as np
 
 import bandelets
+from bandelets.files import from_samples
 from bandelets.memory import check_encodable
-from bandelets.samples import crease_normal_map
+from bandelets.samples import bevel_normal_map, crease_normal_map
 from bandelets.tiling import header_of
+
+#: ``--map``: the source of each size, as the memory's child process makes it.
+MAPS = {
+    "crease": "crease_normal_map({size}, supersampling={supersampling})",
+    "bevel": "bevel_normal_map({size})",
+}
 
 
 def _median_seconds(run, repeat: int, cpu: list | None = None) -> float:
@@ -67,17 +78,26 @@ def _cold_start_seconds() -> float:
     return float(out.stdout.split()[-1])
 
 
-def _peak_memory_mib(size: int, what: str, tile: int) -> str:
+def _source(name: str, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """What ``bandelets.encode`` is given for ``--map name``, and its unit vectors."""
+    if name == "bevel":
+        samples = bevel_normal_map(size)
+        return samples, from_samples(samples, "normal-map", 8)
+    normals = crease_normal_map(size, supersampling=1 if size > 1024 else 4)
+    return normals, normals
+
+
+def _peak_memory_mib(size: int, what: str, tile: int, name: str = "crease", riesz: bool | None = None) -> str:
     """Peak resident memory of a process during one bandelet encode at 1 bpp or one decode of
     that file (Linux: VmHWM, reset after the map, or the file, is made so that only the
     measured call counts; imports included), or the one-line error that refused it."""
     make = (
-        "import bandelets, sys; from bandelets.samples import crease_normal_map; "
-        f"n = crease_normal_map({size}, supersampling=1); "
+        "import bandelets, sys; from bandelets.samples import bevel_normal_map, crease_normal_map; "
+        f"n = {MAPS[name].format(size=size, supersampling=1)}; "
     )
-    if size >= 8192:
+    if size >= 8192 and name == "crease":
         make += "import numpy as np; n = np.round((n + 1) * 127.5).astype(np.uint8); "
-    encode = f"bandelets.encode(n, bpp=1, kind='normal-map', tile={tile})"
+    encode = f"bandelets.encode(n, bpp=1, kind='normal-map', tile={tile}, riesz={riesz})"
     if what == "decode":
         make += f"data = {encode}; "
     call = encode if what == "encode" else "bandelets.decode(data)"
@@ -112,6 +132,10 @@ def main() -> None:
     parser.add_argument(
         "--no-cold-start", action="store_true", help="skip the cold start (empty numba cache)"
     )
+    parser.add_argument("--map", choices=sorted(MAPS), default="crease", help="the map timed")
+    parser.add_argument(
+        "--no-riesz", dest="riesz", action="store_false", default=None, help="code the channels, not a pair"
+    )
     args = parser.parse_args()
     if not args.no_cold_start:
         print(
@@ -130,12 +154,11 @@ def main() -> None:
         if refused:
             print(f"{size:>5} refused under the default limits: {refused}")
             continue
-        normals = crease_normal_map(size, supersampling=1 if size > 1024 else 4)
+        source, normals = _source(args.map, size)
         cpu: list[float] = []
-        data = bandelets.encode(normals, bpp=1, kind="normal-map", tile=args.tile)
-        rated = _median_seconds(
-            partial(bandelets.encode, normals, bpp=1, kind="normal-map", tile=args.tile), args.repeat, cpu
-        )
+        encode = partial(bandelets.encode, source, bpp=1, kind="normal-map", tile=args.tile, riesz=args.riesz)
+        data = encode()
+        rated = _median_seconds(encode, args.repeat, cpu)
         decode = _median_seconds(partial(bandelets.decode, data), args.repeat, cpu)
         plain = _median_seconds(partial(bandelets.decode, data, restore=False), args.repeat, cpu)
         u16 = np.round((normals + 1) / 2 * 65535).astype(np.uint16)
@@ -158,9 +181,10 @@ def main() -> None:
             + " ".join(f"{t:>8.3f}" for t in times)
             + f" {per_pixel[size]:>10.3f}"
         )
-        iterations = header_of(data).restoration
+        header = header_of(data)
         print(
-            f"      {len(data)} bytes, {iterations} restoration iterations (the most of any tile); "
+            f"      {len(data)} bytes, {header.restoration} restoration iterations (the most of any tile), "
+            f"Riesz pair {header.riesz}; "
             f"bandelets CPU time (all threads): 1 bpp {cpu[0]:.3f} s, decode {cpu[1]:.3f} s, "
             f"plain decode {cpu[2]:.3f} s"
         )
@@ -171,10 +195,8 @@ def main() -> None:
             f"decode x{decode / times[3]:.1f}"
         )
         if args.memory:
-            print(
-                f"      peak RSS: encode {_peak_memory_mib(size, 'encode', args.tile)}, "
-                f"decode {_peak_memory_mib(size, 'decode', args.tile)}"
-            )
+            peak = partial(_peak_memory_mib, size, tile=args.tile, name=args.map, riesz=args.riesz)
+            print(f"      peak RSS: encode {peak('encode')}, decode {peak('decode')}")
     if 512 in per_pixel:
         for size, value in per_pixel.items():
             print(f"time per pixel at {size}: {value / per_pixel[512]:.2f} x the 512 one")
