@@ -107,9 +107,12 @@ GOLDEN = {
         {"threshold": 0.1, "kind": "normal-map", "transform": "bandelet", "lifting": True},
     ),
     "bumps32.bdl": (bumps_32, {"threshold": 0.05, "kind": "normal-map", "transform": "bandelet"}),
+    # The pair's spectra differ in their last bits with numpy's SIMD kernels (so do the
+    # equidistant coordinates): with bandelets, a near tie of two directions of this input went
+    # the other way on a baseline CPU, so the pair's file has no direction search.
     "bumps32-riesz.bdl": (
         bumps_32,
-        {"threshold": 0.02, "kind": "normal-map", "transform": "bandelet", "riesz": True},
+        {"threshold": 0.02, "kind": "normal-map", "transform": "wavelet", "riesz": True},
     ),
     "octahedral32.bdl": (octahedral_32, {"threshold": 0.02, "kind": "normal-map", "transform": "bandelet"}),
     "bumps32-lossless.bdl": (bumps_32_samples, {"kind": "normal-map", "lossless": True}),
