@@ -208,7 +208,7 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
     def analysis(x: np.ndarray) -> np.ndarray:  # overwrites x
         c = x
         if sign:  # the channels' Riesz pair is what the wavelets code
-            x[0], x[1] = riesz.forward(x[0].astype(precision), x[1].astype(precision), sign)
+            x[0], x[1] = riesz.forward(*(x[k].astype(precision, copy=False) for k in (0, 1)), sign)
         if lifting is not None:
             each(lambda k: directional.transform(x[k], levels, header.lifting, lifting), range(len(c)))
         else:
@@ -230,7 +230,7 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
         else:
             each(lambda k: waverec(c[k], *args, out=c[k]), range(len(c)))
         if sign:
-            c[0], c[1] = riesz.inverse(c[0].astype(precision), c[1].astype(precision), sign)
+            c[0], c[1] = riesz.inverse(*(c[k].astype(precision, copy=False) for k in (0, 1)), sign)
         return c
 
     return analysis, synthesis

@@ -467,8 +467,9 @@ def encode_with_stats(
         t_guess = min(t_max, 2.0 * metrics.peak(reference, kind) * 10 ** (-psnr / 20)) or t_max / 1e3
     # Fewer levels where the median predictor codes the coarse band for less (levelchoice), at
     # the threshold expected: the first of rate control or of a quality target's search.
-    t_first = kind == "normal-map" and options.wavelet == "cdf97" and (bpp, threshold, t_guess) != (None,) * 3
-    if t_first:
+    targeted = (bpp, threshold, t_guess) != (None,) * 3
+    choosing = kind == "normal-map" and options.wavelet == "cdf97" and targeted
+    if choosing:
         t = t_guess
         if threshold is not None:
             t = float(threshold)
@@ -513,7 +514,7 @@ def encode_with_stats(
                 trials.append((*trial, 0, levels))
         if pairable and t is not None:
             sign, pair, paired_levels, ratio = _riesz_pair(
-                coded, coefficients, lifting, lifting_levels, levels, t, options, choose=bool(t_first)
+                coded, coefficients, lifting, lifting_levels, levels, t, options, choose=choosing
             )
             if ratio < RIESZ_PAYS_BELOW:
                 coefficients, lifting, lifting_levels, turn, levels = pair, None, 0, sign, paired_levels
@@ -741,18 +742,18 @@ def _lifted(
 #: not) is below this, the pair is coded (:func:`_riesz_pair`); where it is below
 #: :data:`RIESZ_TRIAL_BELOW`, a rate target encodes both files and keeps the better (else the
 #: channels). The estimate misses much of what the context coder makes of a pair: of the files of
-#: the maps of issue 15 at 0.25 to 2 bpp (BENCHMARKS, "The Riesz pair of a normal map"), every one
-#: at a ratio of 0.91 or less gained with it (+0.7 to +4.1 dB: bevel, bumps), but between 0.93 and
-#: 1.5 some gained up to 1.8 dB (bevel, bumps, acacia door, crease at 0.25 bpp, 1.50 at 512) and
-#: others lost up to 1.7 dB (acacia door at 0.25 bpp, 0.94; bunny from the top at 0.35 and 0.5 bpp,
-#: 0.99 and 1.08); above 1.5 only losses (0.3 to 24 dB: lava flow, fandisk from the top, crease
-#: from 1 bpp).
+#: the maps of issue 15 at 0.25 to 2 bpp (``benchmarks/riesz_choice.py``; BENCHMARKS, "Where main
+#: stands: format version 15"), those at a ratio of 0.91 or less gained +0.7 to +4.2 dB with it
+#: (bevel, bumps, acacia door) but one (the acacia door at 0.25 bpp: 0.88, -0.14 dB); between 0.93
+#: and 1.5 some gained up to 1.8 dB (bevel, bumps, acacia door, crease at 0.25 bpp, 1.50 at 512)
+#: and others lost up to 1.7 dB (bunny from the top at 0.35 and 0.5 bpp: 0.99 and 1.08); above 1.5
+#: only losses (0.3 to 24 dB: lava flow, fandisk from the top, crease from 1 bpp).
 RIESZ_PAYS_BELOW = 0.9
 RIESZ_TRIAL_BELOW = 1.6
 #: Where the smaller curl (:func:`bandelets.riesz.oriented`) still holds more than this share of the
 #: energy, the map is no height field, and the sign of the pair is the one whose cost estimate is
-#: lower: on the acacia door (x, y; 28 % of curl with the rows along the slope, 93 % against) the
-#: other sign costs 3 to 11 % less at 0.25 to 2 bpp.
+#: lower: on the acacia door (26 % of curl with the smaller-curl sign) the other sign's estimate is
+#: lower and its files better by 0.05 to 0.86 dB at 0.5 to 2 bpp (+0.27 dB BD).
 RIESZ_SIGN_BY_COST = 0.05
 
 
@@ -773,19 +774,19 @@ def _riesz_pair(
     pair's levels are chosen again (:func:`bandelets.levelchoice.choose_levels`): its coarse band is
     not the channels' (the bevel map at 256 kept 2 levels of 5 for its channels; its pair lost 0.28
     dB at 0.25 bpp with them, gained 0.16 at 2 bpp)."""
+
+    def plain_cost(samples, transformed, count):  # unlifted: the directions' side costs zeros
+        return directional.cost(samples, transformed, None, count, min(directional.LEVELS, count), threshold)
+
     top = max_levels(coded.shape[:2]) if choose else levels
     channels = padded_channels(coded, top)
     sign, *pair = riesz.oriented(*channels)
     turned = [wavedec(c, options.wavelet, top) for c in pair]
     energy = [float(np.sum(c * c)) for c in pair]
     if energy[1] > RIESZ_SIGN_BY_COST * sum(energy):  # no height field: the cheaper sign
-        side = min(directional.LEVELS, top)
         other = riesz.forward(*channels, -sign)
         flipped = [wavedec(c, options.wavelet, top) for c in other]
-        kept, flip = (
-            directional.cost(p, c, None, top, side, threshold) for p, c in ((pair, turned), (other, flipped))
-        )
-        if flip < kept:
+        if plain_cost(other, flipped, top) < plain_cost(pair, turned, top):
             sign, pair, turned = -sign, other, flipped
         del other, flipped
     if choose and (fewer := choose_levels(turned, top, threshold)) < top:
@@ -794,14 +795,12 @@ def _riesz_pair(
         turned = [wavedec(c, options.wavelet, top) for c in pair]
     if options.riesz:
         return sign, turned, top, 0.0
-    plain = directional.cost(pair, turned, None, top, min(directional.LEVELS, top), threshold)
     channels = padded_channels(coded, levels)
-    side = min(directional.LEVELS, levels)
     if lifting is None:
-        now = directional.cost(channels, coefficients, None, levels, side, threshold)
+        now = plain_cost(channels, coefficients, levels)
     else:
         now = directional.cost(channels, coefficients, lifting, levels, lifted, threshold)
-    return sign, turned, top, plain / now if now > 0 else 1.0
+    return sign, turned, top, plain_cost(pair, turned, top) / now if now > 0 else 1.0
 
 
 def _above(coefficients: list, t_max: float) -> float:

@@ -11,7 +11,7 @@ its normal gives
 * ``g``: the component along the gradients (``|omega| h`` for a map of slopes: a height seen
   through half a derivative), which holds all of a height field's energy, and
 * ``g'``: the component across them (a curl), 0.08 to 0.3 % of the energy of the generated
-  crease, bumps and bevel maps, 11 % of the lava flow's, 28 % of the acacia door's.
+  crease, bumps and bevel maps, 11 % of the lava flow's, 26 % of the acacia door's.
 
 The rotation is orthonormal at every frequency (DCT-II of ``g`` and DST-II of ``g'`` in both
 directions; DST-II x DCT-II of ``a`` and DCT-II x DST-II of ``b``: the half-sample symmetric
@@ -26,7 +26,7 @@ a bijection.
 Why written here: scipy's DCT and DST do the transforms; no library pairs them into the
 Helmholtz decomposition of a sampled slope field with an exact orthonormal inverse.
 
-BENCHMARKS, "The Riesz pair of a normal map", measures where it pays (the encoder chooses it
+BENCHMARKS, "Where main stands: format version 15", measures where it pays (the encoder chooses it
 per file: :func:`bandelets.encoder.encode`).
 """
 
