@@ -38,7 +38,9 @@ def test_flat_facets_take_fewer_levels_smooth_bumps_all():
 
 
 def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
-    samples = bevel_normal_map(128)
+    # 256 pixels a side: at 128 the 0.5 bpp files (1 KB) are too small to rank the counts (format
+    # version 16 put all the levels 0.4 dB ahead there, 0.8 dB behind at 0.25 bpp).
+    samples = bevel_normal_map(256)
     reference = metrics.unit_vectors(from_samples(samples, "normal-map", 8))
     files = {}
     for choice in ("chosen", "all levels"):
@@ -48,10 +50,10 @@ def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
             )
         # The channels as they are (their Riesz pair chooses its own levels: test_riesz.py).
         data = bandelets.encode(samples, bpp=0.5, kind="normal-map", depth=8, riesz=False)
-        assert 8 * len(data) <= 0.5 * 128 * 128
+        assert 8 * len(data) <= 0.5 * 256 * 256
         files[choice] = unpack(data)[0].levels, metrics.psnr(reference, bandelets.decode(data), "normal-map")
     assert files["chosen"][0] == MIN_LEVELS
-    assert files["all levels"][0] == max_levels((128, 128))
+    assert files["all levels"][0] == max_levels((256, 256))
     assert files["chosen"][1] > files["all levels"][1] + 0.3
 
 

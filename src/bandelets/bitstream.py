@@ -78,7 +78,10 @@ differences across those folds (:mod:`bandelets.restoration`). Only a lossy norm
 channels, square, its side a multiple of ``2**levels``, may be folded. Version 15 may code the two
 channels of a lossy normal map as their Riesz pair (byte 41, :attr:`Header.riesz`,
 :mod:`bandelets.riesz`): the channel along the gradients of a height and the one across them; the
-decoder turns them back at the end of every synthesis. This build reads version 15 only.
+decoder turns them back at the end of every synthesis. Version 16 codes the significance and the
+first two magnitude decisions of the detail coefficients from their contexts mixed with an
+activity context, and their larger magnitudes in contexts of that activity
+(:func:`bandelets.entropy.code_coefficients`); the header is unchanged. This build reads version 16 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 40 says so::
@@ -182,7 +185,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 15
+FORMAT_VERSION = 16
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
