@@ -23,13 +23,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import bandelets
 from bandelets.samples import crease_normal_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from rd_normal_maps import rendered, sample  # noqa: E402
+from rd_defaults import _maps  # noqa: E402
 
 #: Thresholds of each map: its files of about 0.25, 0.35, 0.5 and 1 bpp.
 THRESHOLDS = {
@@ -40,28 +38,14 @@ THRESHOLDS = {
 }
 
 
-def _maps(meshes: Path):
-    made = rendered("fandisk-top", 256, meshes)
-    if made is not None:
-        yield "fandisk-top@256", made
-    if (meshes / "fandisk.off").is_file():
-        from bandelets.surfaces.codec import load_mesh, make_geometry_image
-
-        normals = make_geometry_image(load_mesh(meshes / "fandisk.off"), 256).normals
-        yield "fandisk", (np.asarray(normals, np.float32).astype(np.float64), 0)
-    else:
-        print(f"skipping fandisk: no {meshes / 'fandisk.off'}")
-    yield "crease@256", sample("crease", 256)
-    yield "bevel@256", sample("bevel", 256)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--real", type=Path, default=Path("../shared/data/normal-maps"))
     parser.add_argument("--meshes", type=Path, default=Path("../shared/data/meshes"))
     parser.add_argument("--repeat", type=int, default=15)
     args = parser.parse_args()
     print(f"bandelets from {Path(bandelets.__file__).parent}")
-    for name, (vectors, depth) in _maps(args.meshes):
+    for name, (vectors, depth) in _maps(THRESHOLDS, args.real, args.meshes):
         points = []
         for t in THRESHOLDS[name]:
             size = len(bandelets.encode(vectors, threshold=t, kind="normal-map", depth=depth))

@@ -60,6 +60,7 @@ __all__ = [
     "code_bit",
     "code_backed",
     "code_raw_bit",
+    "octave",
     "registers",
     "keep_registers",
     "POSITION",
@@ -116,7 +117,6 @@ N_HINTS = 24
 SQUARE_START = 1 << 8
 _BSIG = _PREFIX_COARSE + _EG_PREFIX
 _BSIGN = _BSIG + (N_CLASSES - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE * N_HINTS
-_N_WITHOUT_MIXING = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
 # Format version 16: the significance and the first two magnitude decisions mix their fine and
 # coarse contexts with a third, the *activity* context (:func:`_code_mixed`): the class, the octave
 # of the neighbours' full magnitudes (``_N_ACTIVITY``: the contexts above clip them at 2) and the
@@ -130,7 +130,7 @@ _N_WITHOUT_MIXING = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
 # 0.81 to 0.84 of all the levels (0.92 before), below that margin, and lost 9 dB with them.
 _N_ACTIVITY = 12
 _N_GUIDE_OCTAVES = 6
-_ACTIVITY = _N_WITHOUT_MIXING
+_ACTIVITY = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
 _PREFIX_ACTIVE = _ACTIVITY + 3 * N_CLASSES * _N_ACTIVITY * _N_GUIDE_OCTAVES
 _FIRST_BELOW = _PREFIX_ACTIVE + N_CLASSES * _N_ACTIVITY * _EG_PREFIX
 _FIRST_BELOW_COARSE = _FIRST_BELOW + N_CLASSES * _N_ACTIVITY * _EG_PREFIX
@@ -392,10 +392,20 @@ def _code_raw_bit(r, buf, bit, decoding):
     return _code_at(r, buf, _PROB_ONE // 2, bit, decoding)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _octave(v, most):
+    """The bit length of ``v >= 0`` (0 for 0, 1 for 1, 2 for 2-3, ...), at most ``most``."""
+    k = 0
+    while v > 0 and k < most:
+        v >>= 1
+        k += 1
+    return k
+
+
 # Building blocks of the compiled context models of other modules (bandelets.lossless): a kernel
 # takes the registers of a coder's state, codes its decisions, and stores the registers back.
 registers, keep_registers = _registers, _keep
-code_bit, code_backed, code_raw_bit = _code_bit, _code_backed, _code_raw_bit
+code_bit, code_backed, code_raw_bit, octave = _code_bit, _code_backed, _code_raw_bit, _octave
 #: Index, in the registers, of the count of bytes written so far.
 POSITION = _POS
 
@@ -595,10 +605,14 @@ def _coefficients(
         at = order[i]
         before = r[_SPENT]
         cls = classes[i]
-        total = 2 * _magnitude(known, neighbours[i, 0]) + 2 * _magnitude(known, neighbours[i, 1])
-        total += _magnitude(known, neighbours[i, 2]) + _magnitude(known, neighbours[i, 3])
-        near = _SUM_BUCKET[total + _magnitude(known, neighbours[i, 5])]
-        parent = _magnitude(known, neighbours[i, 4])
+        left, up = _full(known, neighbours[i, 0]), _full(known, neighbours[i, 1])
+        corner, across = _full(known, neighbours[i, 2]), _full(known, neighbours[i, 3])
+        coarser, sibling = _full(known, neighbours[i, 4]), _full(known, neighbours[i, 5])
+        # The contexts of version 15 see the magnitudes clipped at 2, the activity all of them.
+        total = 2 * min(left, 2) + 2 * min(up, 2) + min(corner, 2) + min(across, 2)
+        near = _SUM_BUCKET[total + min(sibling, 2)]
+        parent = min(coarser, 2)
+        activity = 2 * left + 2 * up + corner + across + 2 * coarser + sibling
         # The approximation is smooth: code its residual from the median predictor of
         # LOCO-I (left, up, up-left); details are coded as they are.
         predicted = _median_prediction(known, neighbours[i]) if cls == _APPROXIMATION else 0
@@ -606,9 +620,6 @@ def _coefficients(
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
         ctx = (near * 3 + parent) * _N_GUIDE + g
-        activity = 2 * _full(known, neighbours[i, 0]) + 2 * _full(known, neighbours[i, 1])
-        activity += _full(known, neighbours[i, 2]) + _full(known, neighbours[i, 3])
-        activity += 2 * _full(known, neighbours[i, 4]) + _full(known, neighbours[i, 5])
         octave = _octave(activity, _N_ACTIVITY - 1)
         guided = _octave(abs(guide[at]), _N_GUIDE_OCTAVES - 1) if guide.shape[0] > 0 else 0
         active = cls * _N_ACTIVITY + octave
@@ -710,22 +721,6 @@ def _coefficients(
 def _full(known, j):
     """The full magnitude of the coefficient at ``j`` (0 for ``j < 0``)."""
     return abs(known[j]) if j >= 0 else 0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _octave(v, most):
-    """The bit length of ``v >= 0`` (0 for 0, 1 for 1, 2 for 2-3, ...), at most ``most``."""
-    k = 0
-    while v > 0 and k < most:
-        v >>= 1
-        k += 1
-    return k
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _magnitude(known, j):
-    """What the contexts see of the coefficient at ``j``: its magnitude up to 2 (0 for ``j < 0``)."""
-    return min(abs(known[j]), 2) if j >= 0 else 0
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -42,6 +42,7 @@ from .entropy import (
     code_flags,
     code_raw_bit,
     keep_registers,
+    octave,
     registers,
 )
 
@@ -80,11 +81,7 @@ _kernel = njit(cache=True, nogil=True, _nrt=False)
 
 @njit(cache=True, nogil=True, inline="always")
 def _octave(v):
-    n = 0
-    while v > 0 and n < _N_ACTIVITY - 1:
-        v >>= 1
-        n += 1
-    return n
+    return octave(v, _N_ACTIVITY - 1)
 
 
 @njit(cache=True, nogil=True, inline="always")
