@@ -29,8 +29,8 @@ octave of the guide's), whose probability is mixed with the backed one in the lo
 by weights learned as the stream goes (:func:`_code_mixed`, a two-input mixer after PAQ's), and
 the Elias-gamma prefix of the larger magnitudes and the first bit below its leading one are
 read in contexts of that activity: the coefficient streams of the maps of issue 15 are 1 to 2 %
-shorter at the same threshold (BENCHMARKS, "Mixed contexts"), for 10 ms more to decode the 512 x
-512 crease map at 1 bpp (about twice the coefficient decoding's time).
+shorter at the same threshold (BENCHMARKS, "Mixed contexts"), for about 10 ms more to decode
+the 512 x 512 crease map at 1 bpp (entropy decoding 33 ms instead of 22).
 
 The same functions encode and decode: each takes a ``decoding`` flag, so the context
 modelling, the only delicate part, is written once and cannot drift between the two sides.
@@ -137,7 +137,7 @@ _FIRST_BELOW_COARSE = _FIRST_BELOW + N_CLASSES * _N_ACTIVITY * _EG_PREFIX
 # The mixing weights, one set per decision (significance, > 1, > 2) x class x neighbours (0, 1, 2+),
 # live in the context table too (a weight of :data:`_W_INIT` is stored as ``_PROB_ONE // 2``, what
 # a fresh table holds, so that a coder needs no other state).
-_N_INPUTS = 3
+_N_INPUTS = 2
 _MIX = _FIRST_BELOW_COARSE + N_CLASSES * _EG_PREFIX
 _N_COEFF_CONTEXTS = _MIX + 3 * N_CLASSES * 3 * _N_INPUTS
 _BACKOFF = 4
@@ -341,11 +341,12 @@ def _stretch_table(squash: np.ndarray) -> np.ndarray:
 
 _SQUASH = _squash_table()
 _STRETCH = _stretch_table(_SQUASH)
-#: The mixer's initial weights (16.16 fixed point) of the backed probability, of the activity
-#: context's and of the bias: 0.7, 0.3 and 0, mostly the backed one while the activity contexts
-#: are young (the five-input mixer of PAQ's kind, with the fine and coarse contexts apart and the
-#: fine one's maturity, made files within 0.7 %, its coefficient decoding 21 % slower).
-_W_INIT = np.array([45875, 19661, 0], np.int64)
+#: The mixer's initial weights (16.16 fixed point) of the backed probability and of the activity
+#: context's: 0.7 and 0.3, mostly the backed one while the activity contexts are young. A five-input
+#: mixer of PAQ's kind (the fine and coarse contexts apart, the fine one's maturity, a bias) made
+#: files within 0.7 %, its coefficient decoding 21 % slower; a bias alone, files within 0.2 % for
+#: 1.5 ms more at 512 x 512 (``benchmarks/mixed_contexts.py``).
+_W_INIT = np.array([45875, 19661], np.int64)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -353,8 +354,8 @@ def _code_mixed(r, buf, probs, counts, ctx, coarse, activity, weights, bit, deco
     """Code one binary decision from the probability of :func:`_code_backed` (the fine context
     ``ctx`` backed by ``coarse``) mixed with that of the ``activity`` context (format version 16).
 
-    Their stretched probabilities and a bias, weighted by the set of weights at ``weights`` and
-    squashed, as PAQ's mixers do (Mahoney 2005); the weights then follow the gradient of the code
+    Their stretched probabilities, weighted by the set of weights at ``weights`` and squashed, as
+    PAQ's mixers do (Mahoney 2005); the weights then follow the gradient of the code
     length. Integer arithmetic throughout: the encoder and the decoder must compute the same
     probability on every machine. With ``activity < 0``, :func:`_code_backed` alone."""
     if activity < 0:
@@ -366,8 +367,7 @@ def _code_mixed(r, buf, probs, counts, ctx, coarse, activity, weights, bit, deco
     half = _PROB_ONE // 2
     w0 = probs[weights] - half + _W_INIT[0]
     w1 = probs[weights + 1] - half + _W_INIT[1]
-    w2 = probs[weights + 2] - half + _W_INIT[2]
-    d = (w0 * s0 + w1 * s1 + w2 * 256) >> 16
+    d = (w0 * s0 + w1 * s1) >> 16
     p12 = _SQUASH[min(max(d, -2047), 2047) + 2047]
     bit, r = _code_at(r, buf, min(max(p12 << 4, _PROB_MIN), _PROB_ONE - _PROB_MIN), bit, decoding)
     err = ((bit << 12) - p12) * 5
@@ -375,7 +375,6 @@ def _code_mixed(r, buf, probs, counts, ctx, coarse, activity, weights, bit, deco
     # above stay within int64 for far more decisions than any file holds.
     probs[weights] += (s0 * err) >> 13
     probs[weights + 1] += (s1 * err) >> 13
-    probs[weights + 2] += (256 * err) >> 13
     _adapt(probs, counts, ctx, bit)
     if n != _MATURE:
         _adapt(probs, counts, coarse, bit)
@@ -392,14 +391,15 @@ def _code_raw_bit(r, buf, bit, decoding):
     return _code_at(r, buf, _PROB_ONE // 2, bit, decoding)
 
 
+#: Bit lengths of 0 to 2047, for :func:`_octave`.
+_BIT_LENGTHS = np.array([v.bit_length() for v in range(2048)], np.int64)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _octave(v, most):
-    """The bit length of ``v >= 0`` (0 for 0, 1 for 1, 2 for 2-3, ...), at most ``most``."""
-    k = 0
-    while v > 0 and k < most:
-        v >>= 1
-        k += 1
-    return k
+    """The bit length of ``v >= 0`` (0 for 0, 1 for 1, 2 for 2-3, ...), at most ``most`` (<= 11):
+    a table, where a loop's exit would be mispredicted at every coefficient."""
+    return min(_BIT_LENGTHS[min(v, 2047)], most)
 
 
 # Building blocks of the compiled context models of other modules (bandelets.lossless): a kernel
