@@ -7,7 +7,8 @@
 crease (256 and 512), bumps (256) and bevel (256 and 512, 8-bit samples), the shared real maps
 of ``../shared/data/normal-maps`` (read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit)
 and the normal maps of the fandisk and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
-``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats), and the
+``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats; any other mesh of
+``--meshes`` by its name, ``--maps screwdriver arm``), and the
 object-space maps rendered from them (``fandisk-top@256``, ``bunny-top@256``: 16-bit samples,
 ``rd_normal_maps.py --rendered``; ``fandisk-oblique`` and 512 on request); a map whose
 file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
@@ -53,6 +54,15 @@ MAPS = (
     "fandisk-top@256",
     "bunny-top@256",
 )
+#: The shared meshes in ``MAPS``; any other genus-0 mesh of ``--meshes`` is taken by its name
+#: without suffix (``--maps screwdriver elephant``).
+MESH_MAPS = ("fandisk", "bunny")
+MESH_SUFFIXES = (".off", ".obj")
+
+
+def _mesh(meshes: Path, name: str) -> Path | None:
+    """The mesh file ``name`` of ``meshes`` (with one of :data:`MESH_SUFFIXES`), or None."""
+    return next((meshes / f"{name}{s}" for s in MESH_SUFFIXES if (meshes / f"{name}{s}").is_file()), None)
 
 
 def _maps(names, real: Path, meshes: Path):
@@ -65,14 +75,13 @@ def _maps(names, real: Path, meshes: Path):
         elif "@" in name:
             generated, size = name.split("@")
             yield name, sample(generated, int(size))
-        elif name in ("fandisk", "bunny"):
-            if not (meshes / f"{name}.off").is_file():
-                print(f"skipping {name}: no {meshes / name}.off")
-                continue
+        elif mesh := _mesh(meshes, name):
             from bandelets.surfaces.codec import load_mesh, make_geometry_image
 
-            normals = make_geometry_image(load_mesh(meshes / f"{name}.off"), 256).normals
+            normals = make_geometry_image(load_mesh(mesh), 256).normals
             yield name, (np.asarray(normals, np.float32).astype(np.float64), 0)
+        elif name in MESH_MAPS:
+            print(f"skipping {name}: no {meshes / name}.off or .obj")
         elif (real / f"{name}.png").is_file():
             yield name, (load(real / f"{name}.png").astype(np.float64) / 255.0 * 2.0 - 1.0, 8)
         else:

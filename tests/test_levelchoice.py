@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import encoder, metrics, normalmaps
+from bandelets import encoder, levelchoice, metrics, normalmaps
 from bandelets.bitstream import unpack
 from bandelets.files import from_samples
-from bandelets.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels
+from bandelets.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels, levels_to_try
 from bandelets.samples import bevel_normal_map, bump_normal_map
 from bandelets.transform import wavelet_coefficients
 from bandelets.wavelets import coarse_blocks, max_levels, wavedec
@@ -46,7 +46,7 @@ def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
             monkeypatch.setattr(
-                encoder, "choose_levels", lambda coefficients, levels, threshold, frames=False: levels
+                encoder, "levels_to_try", lambda coefficients, levels, threshold, frames=False: (levels,)
             )
         # The channels as they are (their Riesz pair chooses its own levels: test_riesz.py).
         data = bandelets.encode(samples, bpp=0.5, kind="normal-map", depth=8, riesz=False)
@@ -86,7 +86,7 @@ def test_three_channels_encode_with_the_levels_chosen_and_they_pay(monkeypatch, 
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
             monkeypatch.setattr(
-                encoder, "choose_levels", lambda coefficients, levels, threshold, frames: levels
+                encoder, "levels_to_try", lambda coefficients, levels, threshold, frames: (levels,)
             )
         data = bandelets.encode(vectors, kind="normal-map", **target)
         files[choice] = (
@@ -102,3 +102,42 @@ def test_three_channels_encode_with_the_levels_chosen_and_they_pay(monkeypatch, 
     else:  # a quality target: chosen at the search's first threshold, met in a smaller file
         assert files["chosen"][2] >= 60.0
         assert files["chosen"][1] < 0.9 * files["all levels"][1]
+
+
+def test_levels_to_try_gives_the_runner_up_only_when_close():
+    bevel, levels = _coded(from_samples(bevel_normal_map(128), "normal-map", 8))
+    coefficients = wavelet_coefficients(bevel, "cdf97", levels)
+    for t in (0.1, 0.3, 0.6):
+        tried = levels_to_try(coefficients, levels, t)
+        assert tried[0] == choose_levels(coefficients, levels, t)
+        assert len(tried) in (1, 2) and len(set(tried)) == len(tried)
+    # At 0.3 all the levels, priced at their margin, come within TRY_WITHIN of 2; at 0.6 nothing
+    # does. Within any factor the runner-up is given, within none never.
+    assert levels_to_try(coefficients, levels, 0.3) == (MIN_LEVELS, levels)
+    assert len(levels_to_try(coefficients, levels, 0.6)) == 1
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(levelchoice, "TRY_WITHIN", 1e9)
+        assert len(levels_to_try(coefficients, levels, 0.6)) == 2
+        patch.setattr(levelchoice, "TRY_WITHIN", 1.0)
+        assert all(len(levels_to_try(coefficients, levels, t)) == 1 for t in (0.1, 0.3, 0.6))
+
+
+def test_a_rate_target_keeps_the_runner_up_where_it_decodes_better(shared_data, monkeypatch):
+    # Fandisk rendered from the top at 0.35 bpp: the estimate prefers 2 levels (0.801 of all the
+    # levels' cost) to 3 (0.849), which decode 1.1 dB better.
+    from bandelets.surfaces.codec import load_mesh
+    from bandelets.surfaces.render import render_normals, to_samples, turned_up
+
+    mesh = load_mesh(shared_data / "meshes" / "fandisk.off")
+    normals = render_normals(turned_up(mesh.vertices, "-z"), mesh.faces, 256, (0.0, 0.0, 1.0), 45.0)
+    samples = to_samples(normals, 16)
+    reference = metrics.unit_vectors(from_samples(samples, "normal-map", 16))
+    files = {}
+    for within in (1.0, levelchoice.TRY_WITHIN):
+        monkeypatch.setattr(levelchoice, "TRY_WITHIN", within)
+        data = bandelets.encode(samples, bpp=0.35, kind="normal-map", depth=16)
+        assert 8 * len(data) <= 0.35 * 256 * 256
+        files[within] = unpack(data)[0].levels, metrics.psnr(reference, bandelets.decode(data), "normal-map")
+    assert files[1.0][0] == MIN_LEVELS
+    assert files[levelchoice.TRY_WITHIN][0] == MIN_LEVELS + 1
+    assert files[levelchoice.TRY_WITHIN][1] > files[1.0][1] + 0.5

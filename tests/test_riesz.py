@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import encoder, metrics, ratecontrol, riesz
+from bandelets import encoder, levelchoice, metrics, ratecontrol, riesz
 from bandelets.bitstream import FormatError, pack, unpack
 from bandelets.files import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
@@ -119,6 +119,9 @@ def test_a_rate_target_tries_the_pair_where_it_nearly_pays_and_keeps_the_better(
     searches = []
     search = ratecontrol.for_size
     monkeypatch.setattr(ratecontrol, "for_size", lambda *a, **k: searches.append(1) or search(*a, **k))
+    # Without the trial of a close count of levels (tests/test_levelchoice.py), which this map at
+    # this rate also makes.
+    monkeypatch.setattr(levelchoice, "TRY_WITHIN", 1.0)
     # The crease map at 128 and 1 bpp: the pair's cost is 1.18 of the lifted channels' estimate,
     # within RIESZ_TRIAL_BELOW (and the directions nearly pay there too): the channels, lifted
     # and not, and their pair are made, and the kept one is the best of them.

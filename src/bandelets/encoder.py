@@ -40,7 +40,7 @@ from .decoder import decode, decoded_bins, decoded_image, restorations
 from .files import as_read, to_samples
 from .lagrangian import LAMBDA
 from .layout import approximation_plan
-from .levelchoice import choose_levels
+from .levelchoice import choose_levels, levels_to_try
 from .memory import check_encodable, check_memory, restoration_work
 from .options import AUTO_WAVELET, EncodeOptions, check_image, check_targets, geometry_options
 from .progress import Progress
@@ -469,13 +469,15 @@ def encode_with_stats(
     # the threshold expected: the first of rate control or of a quality target's search.
     targeted = (bpp, threshold, t_guess) != (None,) * 3
     choosing = kind == "normal-map" and options.wavelet == "cdf97" and targeted
+    level_trial = []  # the runner-up count of levels, if close, for a rate target to try
     if choosing:
         t = t_guess
         if threshold is not None:
             t = float(threshold)
         elif bpp is not None:
             t = ratecontrol.first_threshold(int(bpp * height * width / 8), t_max, model)
-        if (fewer := choose_levels(coefficients, levels, t, frames=not two)) < levels:
+        fewer, *level_trial = levels_to_try(coefficients, levels, t, frames=not two)
+        if fewer < levels:
             levels, lifting_levels = fewer, _lifting_levels(options, fewer, geometry)
             coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
             if model is not None:
@@ -489,7 +491,8 @@ def encode_with_stats(
     # A copy of the reference, made when first needed (not by a rate target with the restoration).
     measure_psnr = None
     # The other files a rate target tries, the better kept: the coefficients, directions, levels
-    # lifted and Riesz sign of each (the lifted ones, see TRIAL_BELOW; the Riesz pair, RIESZ_TRIAL_BELOW).
+    # lifted and Riesz sign of each (the lifted ones, see TRIAL_BELOW; the Riesz pair, RIESZ_TRIAL_BELOW;
+    # a count of levels close to the one chosen, levelchoice.TRY_WITHIN).
     trials = []
 
     def measure(decoded: np.ndarray) -> float:
@@ -512,6 +515,8 @@ def encode_with_stats(
             )
             if trial is not None and tries:
                 trials.append((*trial, 0, levels))
+        if level_trial and tries:
+            trials.append((*_with_levels(coded, level_trial[0], t, options, geometry), 0, level_trial[0]))
         if pairable and t is not None:
             sign, pair, paired_levels, ratio = _riesz_pair(
                 coded, coefficients, lifting, lifting_levels, levels, t, options, choose=choosing
@@ -736,6 +741,19 @@ def _lifted(
         return lifted, fields, lifting_levels, None
     close = directional.cost_ratio(channels, lifted, fields, levels, lifting_levels, threshold, plain, cost)
     return plain, None, 0, (lifted, fields, lifting_levels) if close < TRIAL_BELOW else None
+
+
+def _with_levels(
+    coded: np.ndarray, levels: int, threshold: float | None, options: EncodeOptions, geometry: dict
+) -> tuple[list, list | None, int]:
+    """The coefficients of the channels ``coded`` with ``levels`` wavelet levels, lifted along
+    directions chosen for ``threshold`` where they pay (none without a threshold), the directions
+    and the levels lifted: a count of levels to try (:func:`bandelets.levelchoice.levels_to_try`)."""
+    coefficients = wavelet_coefficients(coded, options.wavelet, levels, options.extension)
+    lifting_levels = _lifting_levels(options, levels, geometry)
+    if not lifting_levels or threshold is None:
+        return coefficients, None, 0
+    return _lifted(coded, coefficients, levels, lifting_levels, threshold, options.lifting is None)[:3]
 
 
 #: Where the Riesz pair's :func:`bandelets.directional.cost` over that of the channels (lifted or
