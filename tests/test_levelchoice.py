@@ -141,3 +141,14 @@ def test_a_rate_target_keeps_the_runner_up_where_it_decodes_better(shared_data, 
     assert files[1.0][0] == MIN_LEVELS
     assert files[levelchoice.TRY_WITHIN][0] == MIN_LEVELS + 1
     assert files[levelchoice.TRY_WITHIN][1] > files[1.0][1] + 0.5
+
+
+def test_three_channels_get_no_runner_up():
+    # Their margin is within TRY_WITHIN of both counts' costs at every rate (fandisk's and bunny's
+    # normal maps): a runner-up would double their encoding time for nothing.
+    x = metrics.unit_vectors(_sphere(128, 6))
+    coefficients = wavelet_coefficients(x, "cdf97", 4)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(levelchoice, "TRY_WITHIN", 1e9)
+        assert all(levels_to_try(coefficients, 4, t, frames=True) == (FRAMES_LEVELS,) for t in (0.3, 0.03))
+        assert len(levels_to_try(coefficients, 4, 0.3)) == 2
