@@ -8,7 +8,7 @@ crease (256 and 512), bumps (256) and bevel (256 and 512, 8-bit samples), the sh
 of ``../shared/data/normal-maps`` (read as ``benchmarks/rd_normal_maps.py`` reads them, 8-bit)
 and the normal maps of the fandisk and bunny meshes (``make_geometry_image(load_mesh(MESH), 256).normals``, as
 ``benchmarks/rd_surfaces.py --only mesh-normals`` makes them, given as floats; any other mesh of
-``--meshes`` by its name, ``--maps screwdriver arm``), and the
+``--meshes`` by its name, ``--maps screwdriver arm``, at another size as ``arm@512``), and the
 object-space maps rendered from them (``fandisk-top@256``, ``bunny-top@256``: 16-bit samples,
 ``rd_normal_maps.py --rendered``; ``fandisk-oblique`` and 512 on request); a map whose
 file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
@@ -72,16 +72,17 @@ def _maps(names, real: Path, meshes: Path):
             view, size = name.split("@")
             if (made := rendered(view, int(size), meshes)) is not None:
                 yield name, made
+        elif mesh := _mesh(meshes, name.split("@")[0]):
+            from bandelets.surfaces.codec import load_mesh, make_geometry_image
+
+            size = int(name.split("@")[1]) if "@" in name else 256
+            normals = make_geometry_image(load_mesh(mesh), size).normals
+            yield name, (np.asarray(normals, np.float32).astype(np.float64), 0)
         elif "@" in name:
             generated, size = name.split("@")
             yield name, sample(generated, int(size))
-        elif mesh := _mesh(meshes, name):
-            from bandelets.surfaces.codec import load_mesh, make_geometry_image
-
-            normals = make_geometry_image(load_mesh(mesh), 256).normals
-            yield name, (np.asarray(normals, np.float32).astype(np.float64), 0)
-        elif name in MESH_MAPS:
-            print(f"skipping {name}: no {meshes / name}.off or .obj")
+        elif name.split("@")[0] in MESH_MAPS:
+            print(f"skipping {name}: no {meshes / name.split('@')[0]}.off or .obj")
         elif (real / f"{name}.png").is_file():
             yield name, (load(real / f"{name}.png").astype(np.float64) / 255.0 * 2.0 - 1.0, 8)
         else:
