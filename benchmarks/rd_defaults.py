@@ -68,21 +68,19 @@ def _mesh(meshes: Path, name: str) -> Path | None:
 def _maps(names, real: Path, meshes: Path):
     """``name -> (unit vectors, depth)`` of the maps ``names`` whose source is present."""
     for name in names:
-        if "@" in name and name.split("@")[0] in RENDERED:
-            view, size = name.split("@")
-            if (made := rendered(view, int(size), meshes)) is not None:
+        base, _, size = name.partition("@")  # a size after "@", else the default of each kind
+        if size and base in RENDERED:
+            if (made := rendered(base, int(size), meshes)) is not None:
                 yield name, made
-        elif mesh := _mesh(meshes, name.split("@")[0]):
+        elif mesh := _mesh(meshes, base):
             from bandelets.surfaces.codec import load_mesh, make_geometry_image
 
-            size = int(name.split("@")[1]) if "@" in name else 256
-            normals = make_geometry_image(load_mesh(mesh), size).normals
+            normals = make_geometry_image(load_mesh(mesh), int(size or 256)).normals
             yield name, (np.asarray(normals, np.float32).astype(np.float64), 0)
-        elif "@" in name:
-            generated, size = name.split("@")
-            yield name, sample(generated, int(size))
-        elif name.split("@")[0] in MESH_MAPS:
-            print(f"skipping {name}: no {meshes / name.split('@')[0]}.off or .obj")
+        elif size:
+            yield name, sample(base, int(size))
+        elif base in MESH_MAPS:
+            print(f"skipping {name}: no {meshes / base}.off or .obj")
         elif (real / f"{name}.png").is_file():
             yield name, (load(real / f"{name}.png").astype(np.float64) / 255.0 * 2.0 - 1.0, 8)
         else:
