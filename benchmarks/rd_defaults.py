@@ -16,7 +16,8 @@ file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
 :mod:`bandelets.anchors` drives it (4:4:4, identity matrix, speed 2), every point measured
 from its file (bpp ``8 x bytes / pixels``, PSNR of the decoded vectors renormalised). Prints the
 points and the BD-PSNR of the defaults over AVIF and, with ``--against``, over the defaults of
-the run saved there (``--save`` writes this run's curves as JSON).
+the run saved there (``--save`` writes this run's curves as JSON; ``--avif`` takes AVIF's curves
+from such a file instead of encoding them again, which takes most of the run's time).
 
 A point that is a lossless file (an 8-bit map under a target its lossless file fits) has an
 infinite PSNR; the BD-PSNRs are those of ``benchmarks/rd_normal_maps.py``: on the finite points
@@ -127,11 +128,16 @@ def main() -> None:
     parser.add_argument("--meshes", type=Path, default=Path("../shared/data/meshes"))
     parser.add_argument("--save", type=Path, help="write this run's curves here (JSON)")
     parser.add_argument("--against", type=Path, help="curves of an earlier run (--save) to compare with")
+    parser.add_argument(
+        "--avif", type=Path, help="AVIF's curves from an earlier run (--save), where it has them"
+    )
     args = parser.parse_args()
     earlier = json.loads(args.against.read_text()) if args.against else {}
+    kept = json.loads(args.avif.read_text()) if args.avif else {}
     curves = {}
     for name, (vectors, depth) in _maps(args.maps, args.real, args.meshes):
-        ours, avif = _curve(vectors, depth, "bandelets"), _curve(vectors, depth, "avif")
+        ours = _curve(vectors, depth, "bandelets")
+        avif = [tuple(p) for p in kept[name]["avif"]] if name in kept else _curve(vectors, depth, "avif")
         curves[name] = {"bandelets": ours, "avif": avif}
         points = " ".join(f"{p:.2f} ({b:.3f})" for b, p in ours)
         line = f"{name}: {points}; over AVIF {_bd(ours, avif):+.2f} dB"

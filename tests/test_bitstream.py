@@ -12,12 +12,16 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from headerints import leb128, read_integers
 
 import bandelets
 from bandelets.bitstream import (
     FORMAT_VERSION,
+    HEADER_BYTES,
     KINDS,
     MAGIC,
+    MAX_THRESHOLD,
+    MIN_THRESHOLD,
     NORMAL_MAP_WEIGHT,
     TRANSFORMS_1D,
     WAVELETS,
@@ -28,12 +32,13 @@ from bandelets.bitstream import (
     Wavelet,
     implied_options,
     pack,
+    streams_offset,
     unpack,
 )
 from bandelets.options import EncodeOptions
 
-HEADER_SIZE = 42  # fixed fields, before the streams
-GEOMETRY_SIZE = 14  # options of a geometry image, after the fixed fields
+FIXED_SIZE = 14  # fixed fields, before the five LEB128 integers (sides, stream lengths)
+GEOMETRY_SIZE = 5  # options of a geometry image, before its LEB128 vertex count
 
 
 #: A normal map that is an octahedral geometry image (format version 14).
@@ -62,6 +67,20 @@ def _patched(data: bytes, offset: int, fmt: str, value) -> bytes:
     b = bytearray(data[:-4])
     struct.pack_into(fmt, b, offset, value)
     return _with_crc(bytes(b))
+
+
+def _bits(data: bytes, offset: int, mask: int, value: int) -> bytes:
+    """``data`` with the bits ``mask`` of byte ``offset`` set to ``value`` (shifted into them)."""
+    low = (mask & -mask).bit_length() - 1
+    return _patched(data, offset, "<B", data[offset] & ~mask | value << low)
+
+
+def _with_integers(data: bytes, start: int, values: dict[int, int], count: int = 5) -> bytes:
+    """``data`` with the ``count`` LEB128 integers from ``start`` rewritten (``values``: index ->
+    value; 0 height, 1 width, 2 to 4 the stream lengths) and a valid CRC again."""
+    old, end = read_integers(data, start, count)
+    new = [values.get(i, v) for i, v in enumerate(old)]
+    return _with_crc(data[:start] + b"".join(map(leb128, new)) + data[end:-4])
 
 
 @pytest.fixture(scope="module")
@@ -190,8 +209,10 @@ def test_header_round_trip(header):
     data = pack(header, streams)
     assert data[:4] == MAGIC
     assert data[4] == FORMAT_VERSION
-    extra = GEOMETRY_SIZE if header.kind == "geometry-image" else 0
-    assert len(data) == HEADER_SIZE + extra + sum(map(len, streams)) + 4
+    extra = GEOMETRY_SIZE + 1 if header.kind == "geometry-image" else 0  # 1: the vertices, 0
+    integers = len(b"".join(map(leb128, (header.height, header.width, *map(len, streams)))))
+    assert len(data) == FIXED_SIZE + integers + extra + sum(map(len, streams)) + 4
+    assert streams_offset(data) == FIXED_SIZE + integers + extra
     got, got_streams = unpack(data)
     assert got == header
     assert got_streams == streams
@@ -257,7 +278,7 @@ def test_only_a_square_unpadded_normal_map_of_three_channels_is_folded(changes):
 def test_folded_flag_on_a_normal_map_that_cannot_be_folded_is_a_format_error(normal_file):
     """The crease map of 32 x 32 is coded as two channels: it cannot be folded."""
     with pytest.raises(FormatError, match="folded"):
-        bandelets.decode(_patched(normal_file, 41, "<B", normal_file[41] + 128))
+        bandelets.decode(_patched(normal_file, 9, "<B", normal_file[9] + 128))
 
 
 def test_bad_magic(small_file):
@@ -288,46 +309,73 @@ def test_crc_mismatch(small_file):
 def test_truncated_header(small_file):
     data, _ = small_file
     with pytest.raises(FormatError, match="truncated"):
-        unpack(data[:HEADER_SIZE])
+        unpack(data[: HEADER_BYTES - 1])
 
 
 @pytest.mark.parametrize(
-    ("offset", "fmt", "value", "words"),
+    ("offset", "mask", "value", "words"),
     [
-        (12, "<I", 2**31, "exceeds"),  # height
-        (16, "<I", 100_000, "exceeds"),  # width
-        (12, "<I", 0, "exceeds"),
-        (12, "<I", 16384, "samples"),  # sides within the limit, too many samples (see below)
-        (5, "<B", 9, "kind"),
-        (6, "<B", 3, "transform"),
-        (6, "<B", 2, "lossless file"),
-        (7, "<B", 200, "wavelet"),
-        (8, "<B", 0, "levels"),
-        (8, "<B", 7, "levels"),
-        (9, "<B", 0, "channel"),
-        (9, "<B", 5, "channel"),
-        (10, "<B", 12, "depth"),
-        (10, "<B", 64, "layout"),  # x, y layout of a gray image
-        (10, "<B", 192 + 8, "layout"),
-        (11, "<B", 2, "1D transform"),
-        (20, "<d", 0.0, "threshold"),
-        (20, "<d", -1.0, "threshold"),
-        (20, "<d", float("nan"), "threshold"),
-        (20, "<d", float("inf"), "threshold"),
-        (28, "<I", 10**6, "stream lengths"),
-        (36, "<I", 0, "stream lengths"),
-        (40, "<B", 101, "restoration iterations"),
-        (41, "<B", 4, "directional levels"),
-        (41, "<B", 128, "folded"),  # a gray image
+        (5, 255, 9, "kind"),
+        (6, 3, 3, "transform"),
+        (6, 3, 2, "lossless file"),
+        (6, 28, 7, "wavelet"),
+        (6, 192, 1, "layout"),  # x, y layout of a gray image
+        (6, 192, 3, "layout"),
+        (7, 7, 0, "levels"),
+        (7, 7, 7, "levels"),
+        (7, 96, 3, "depth"),
+        (7, 128, 1, "depth"),
+        (8, 127, 101, "restoration iterations"),
+        (9, 31, 4, "directional levels"),
+        (9, 128, 1, "folded"),  # a gray image
     ],
 )
-def test_absurd_fields_are_format_errors(small_file, offset, fmt, value, words):
+def test_absurd_fields_are_format_errors(small_file, offset, mask, value, words):
     data, _ = small_file
-    if offset == 12 and value == 16384:  # 16384 x 16384 x 4 channels
-        data = _patched(_patched(data, 16, "<I", 16384), 9, "<B", 4)
-    bad = _patched(data, offset, fmt, value)
     with pytest.raises(FormatError, match=words):
-        bandelets.decode(bad)
+        bandelets.decode(_bits(data, offset, mask, value))
+
+
+@pytest.mark.parametrize(
+    "threshold", [0.0, -1.0, float("nan"), float("inf"), MIN_THRESHOLD / 2, MAX_THRESHOLD * 2, 3e38]
+)
+def test_thresholds_out_of_range_are_format_errors(small_file, threshold):
+    with pytest.raises(FormatError, match="threshold"):
+        bandelets.decode(_patched(small_file[0], 10, "<f", threshold))
+
+
+@pytest.mark.parametrize(
+    ("values", "words"),
+    [
+        ({0: 2**31}, "exceeds"),  # height
+        ({1: 100_000}, "exceeds"),  # width
+        ({0: 0}, "exceeds"),
+        ({2: 10**6}, "stream lengths"),
+        ({4: 0}, "stream lengths"),
+        ({0: 2**32}, "exceeds 2\\*\\*32"),
+    ],
+)
+def test_absurd_integers_are_format_errors(small_file, values, words):
+    with pytest.raises(FormatError, match=words):
+        bandelets.decode(_with_integers(small_file[0], FIXED_SIZE, values))
+
+
+def test_too_many_samples_is_a_format_error(small_file):
+    """Sides within the limit, too many samples: 16384 x 16384 x 4 channels."""
+    data = _with_integers(_bits(small_file[0], 7, 24, 3), FIXED_SIZE, {0: 16384, 1: 16384})
+    with pytest.raises(FormatError, match="samples"):
+        bandelets.decode(data)
+
+
+def test_malformed_integers_are_format_errors(small_file):
+    data = small_file[0]
+    height = read_integers(data, FIXED_SIZE, 1)[0][0]  # 24: one byte
+    for bad, words in [
+        (bytes([height | 128, 0]), "needless byte"),
+        (b"\x80" * 5 + b"\x01", "over 5 bytes"),
+    ]:
+        with pytest.raises(FormatError, match=words):
+            bandelets.decode(_with_crc(data[:FIXED_SIZE] + bad + data[FIXED_SIZE + 1 : -4]))
 
 
 def test_size_limits_are_configurable(small_file):
@@ -372,7 +420,7 @@ def test_bit_flips_in_the_streams_behind_a_valid_crc(small_file, normal_file, wh
     data, shape = small_file if which == "small" else (normal_file, (32, 32, 3))
     rng = np.random.default_rng(11)
     outcomes = set()
-    for bit in rng.integers(8 * HEADER_SIZE, 8 * (len(data) - 4), 150):
+    for bit in rng.integers(8 * streams_offset(data), 8 * (len(data) - 4), 150):
         b = bytearray(data[:-4])
         b[bit // 8] ^= 1 << (bit % 8)
         outcomes.add(_decodes_or_format_error(_with_crc(bytes(b)), shape))
@@ -400,7 +448,7 @@ def test_huge_threshold_does_not_crash_the_decoder(tmp_path):
         image = np.tanh((np.cos(0.5) * (y - 32.2) - np.sin(0.5) * (x - 32.3)) / 1.5)
         image = image + 0.02 * np.random.default_rng(0).standard_normal(image.shape)
         data = bytearray(bandelets.encode(image, threshold=0.02)[:-4])
-        struct.pack_into("<d", data, 20, 1e308)
+        struct.pack_into("<f", data, 10, 3e38)
         data = bytes(data) + struct.pack("<I", zlib.crc32(bytes(data)))
         try:
             out = bandelets.decode(data)
@@ -430,11 +478,17 @@ def geometry_file():
     return bandelets.encode(p, threshold=0.01, kind="geometry-image", frames=True, extension="spherical")
 
 
+def _options_at(data: bytes) -> int:
+    """Where a geometry image's options start: after the five integers of its header."""
+    return read_integers(data, FIXED_SIZE, 5)[1]
+
+
 def test_geometry_options_are_read_back(geometry_file):
     header, _ = unpack(geometry_file)
     assert (header.extension, header.frames, header.normal_weight) == ("spherical", True, 2.0)
     assert header.mesh_vertices == 0  # an image made from no mesh
-    assert unpack(_patched(geometry_file, HEADER_SIZE + 10, "<I", 6002))[0].mesh_vertices == 6002
+    more = _with_integers(geometry_file, _options_at(geometry_file) + GEOMETRY_SIZE, {0: 6002}, 1)
+    assert unpack(more)[0].mesh_vertices == 6002
 
 
 def test_mesh_vertices_belong_to_geometry_images():
@@ -451,29 +505,40 @@ def test_mesh_vertices_belong_to_geometry_images():
 @pytest.mark.parametrize(
     ("offset", "fmt", "value", "words"),
     [
-        (HEADER_SIZE, "<B", 2, "extension code"),
-        (HEADER_SIZE + 1, "<B", 2, "frames flag"),
-        (HEADER_SIZE + 2, "<d", 0.0, "normal weight"),
-        (HEADER_SIZE + 2, "<d", 65.0, "normal weight"),
-        (HEADER_SIZE + 2, "<d", float("nan"), "normal weight"),
-        (HEADER_SIZE + 2, "<d", float("-inf"), "normal weight"),
-        (HEADER_SIZE + 10, "<I", 3, "source mesh of 3 vertices"),
-        (7, "<B", 1, "spherical extension"),  # haar
-        (16, "<I", 8, "spherical extension"),  # not square
-        (8, "<B", 5, "spherical extension"),  # 16 is not a multiple of 2**5
+        (0, "<B", 6, "extension code"),  # frames on, extension 4
+        (1, "<f", 0.0, "normal weight"),
+        (1, "<f", 65.0, "normal weight"),
+        (1, "<f", float("nan"), "normal weight"),
+        (1, "<f", float("-inf"), "normal weight"),
+        (5, "<B", 3, "source mesh of 3 vertices"),
     ],
 )
 def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, value, words):
+    offset += _options_at(geometry_file)
     with pytest.raises(FormatError, match=words):
         bandelets.decode(_patched(geometry_file, offset, fmt, value))
 
 
+@pytest.mark.parametrize(
+    "patch",
+    [
+        lambda data: _bits(data, 6, 28, 1),  # haar
+        lambda data: _with_integers(data, FIXED_SIZE, {1: 8}),  # not square
+        lambda data: _bits(data, 7, 7, 5),  # 16 is not a multiple of 2**5
+    ],
+)
+def test_spherical_extension_of_another_image_is_a_format_error(geometry_file, patch):
+    with pytest.raises(FormatError, match="spherical extension"):
+        bandelets.decode(patch(geometry_file))
+
+
 def test_normal_weight_without_frames_is_a_format_error(geometry_file):
     with pytest.raises(FormatError, match="without local frames"):
-        bandelets.decode(_patched(geometry_file, HEADER_SIZE + 1, "<B", 0))
+        bandelets.decode(_bits(geometry_file, _options_at(geometry_file), 2, 0))
 
 
 def test_geometry_file_truncated_in_its_options(geometry_file):
-    for end in range(HEADER_SIZE, HEADER_SIZE + GEOMETRY_SIZE + 1):
+    start = _options_at(geometry_file)
+    for end in range(start, start + GEOMETRY_SIZE + 1):
         with pytest.raises(FormatError):
             bandelets.decode(_with_crc(geometry_file[:end]))

@@ -151,9 +151,9 @@ def test_the_encoders_filter_is_what_the_decoder_applies():
 
 def _section(data: bytes, section: bytes) -> bytes:
     """``data`` (a file without a filter) with ``section`` after its streams, the flag of a loop
-    filter set (byte 40), a valid CRC."""
+    filter set (byte 8), a valid CRC."""
     body = bytearray(data[:-4] + section)
-    body[40] |= 128
+    body[8] |= 128
     return bytes(body) + struct.pack("<I", zlib.crc32(body))
 
 

@@ -69,7 +69,7 @@ def test_the_header_carries_the_pair_and_refuses_it_where_it_cannot_be():
     with pytest.raises(ValueError, match="Riesz pair"):
         pack(replace(header, channels=3, layout="xyz", frames=True, normal_weight=4.0), streams)
     corrupt = bytearray(data)
-    corrupt[41] = (corrupt[41] % 32) + 64  # code 2: not a Riesz code
+    corrupt[9] = (corrupt[9] % 32) + 64  # code 2: not a Riesz code
     body = bytes(corrupt[:-4])
     with pytest.raises(FormatError, match="Riesz code 2"):
         unpack(body + zlib.crc32(body).to_bytes(4, "little"))

@@ -6,85 +6,95 @@ Layout (little endian)::
     0       4     magic b"BDL\\x1a"
     4       1     format version (FORMAT_VERSION)
     5       1     kind: KIND_CODES (0 image, 1 normal-map, 2 geometry-image)
-    6       1     transform: TRANSFORM_CODES (0 bandelet, 1 wavelet, 2 lossless)
-    7       1     wavelet: WAVELET_CODES
-    8       1     wavelet levels
-    9       1     channels coded (1 to 4; a normal map: 3, or 2 when z is rebuilt, see below)
-    10      1     source: sample depth 0 float, 8 or 16 (bits of PNG or TIFF samples, for decoding
-                  back to them), plus 64 times the LAYOUT_CODES of a normal map's source
-    11      1     1D transform along the directions: TRANSFORM_1D_CODES (0 haar, 1 alpert2)
-    12      4     height
-    16      4     width
-    20      8     threshold T (float64, MIN_THRESHOLD to MAX_THRESHOLD)
-    28      4x3   byte lengths of the streams: quadtree splits, directions, coefficients
-    40      1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
+    6       1     transform: TRANSFORM_CODES (0 bandelet, 1 wavelet, 2 lossless), plus 4 times the
+                  wavelet: WAVELET_CODES, plus 32 times the 1D transform along the directions:
+                  TRANSFORM_1D_CODES (0 haar, 1 alpert2), plus 64 times the LAYOUT_CODES of a
+                  normal map's source
+    7       1     wavelet levels (1 to MAX_LEVELS), plus 8 times the channels coded less one (1 to
+                  4; a normal map: 3, or 2 when z is rebuilt, see below), plus 32 times the source's
+                  sample depth: DEPTH_CODES (0 float, 1 8-bit, 2 16-bit: bits of PNG or TIFF
+                  samples, for decoding back to them); the top bit is 0
+    8       1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restoration`), plus 128
                   if the file has a loop filter (format version 11)
-    41      1     finest wavelet levels lifted along directions (0: none; :mod:`bandelets.directional`),
-                  plus 32 if the two channels of a normal map are coded as their Riesz pair,
+    9       1     finest wavelet levels lifted along directions (0: none;
+                  :mod:`bandelets.directional`), plus 32 if the two channels of a normal map
+                  are coded as their Riesz pair,
                   64 more if its rows run against the slope (format version 15, see below),
                   plus 128 if the image is folded (format version 14, see below)
-    42      ...   geometry-image options (kind 2 only, 14 bytes, see below)
-    42/56   ...   the three streams
-    ...     ...   the loop filter (format version 11; when byte 40 says so)
+    10      4     threshold T (float32, MIN_THRESHOLD to MAX_THRESHOLD)
+    14      ...   height, width, then the byte lengths of the three streams (quadtree splits,
+                  directions, coefficients): five unsigned LEB128 integers (7 bits a byte, low
+                  bits first, the top bit set on every byte but the last; at most 5 bytes, no
+                  needless trailing byte, below 2**32)
+    ...     ...   geometry-image options (kind 2 only, see below)
+    ...     ...   the three streams
+    ...     ...   the loop filter (format version 11; when byte 8 says so)
     end-4   4     CRC32 of everything before it
 
 Until version 10, a normal map whose every vector has ``z >= 0`` (tangent-space and height-field
 maps) was coded as its two channels ``x, y``; the decoder rebuilds ``z = sqrt(1 - x^2 - y^2)``
-(format version 2; version 1 always coded three channels). Format version 3 added the
-restoration byte; version 4 changed the restoration's penalty (a log total variation instead of
-the total variation) and restores a normal map coded with its three channels on the unit sphere
-(:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty, codes a
-normal map of three channels in local frames around its coarser normals (implied by the kind and
-the channel count, weight :data:`NORMAL_MAP_WEIGHT`: no header field) and lets
-files with local frames be restored. Version 6 fixed the basis of Alpert's multiwavelet by
-construction (:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose
-rotation depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive lifting at the
-finest levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the
-directions stream). Version 8 added the vertex count of the source mesh to the geometry-image
-options. Version 9 projects the restoration into the bins every
-:data:`bandelets.restoration.PROJECT_EVERY` iterations, not at every one, changed the
-coefficient stream's contexts (:mod:`bandelets.entropy`: backed by coarse contexts, the sign's
-upper neighbour, the sibling subband, one class per level), and added tiled files (a container of
-files of one tile, :mod:`bandelets.tiling`). Version 10 gave the 1D bandelet coefficients
-contexts of their own (:mod:`bandelets.squarecontexts`: what the sibling and parent subbands
-hold around the square, and the signs of the two channels' coefficients square by square), let a
-normal map coded with its three channels (in local frames) be lifted along directions, computes
-the restoration's gradient in float32 (the steps' images too, where the samples' scale allows:
-:data:`bandelets.restoration.SINGLE_UP_TO`), and has its encoder write the fewest restoration
-iterations that keep 97 % of the best gain (:data:`bandelets.encoder.RESTORATION_SHARE`).
-Version 11 codes the two channels of a normal map of layout ``xyz`` as the azimuthal
-equidistant coordinates of its vectors (:func:`bandelets.normalmaps.equidistant`), not ``x, y``,
-and codes so every map whose vectors lie within :data:`bandelets.normalmaps.ONE_WAY` of +z.
-Version 11 also added the loop filter (:mod:`bandelets.loopfilter`), after the streams,
-reconstructs a bin at its middle (:data:`bandelets.quantize.RECONSTRUCTION`, 0.44 of the bin
-before) and codes the lifting blocks' moved flags in the context of their neighbours
-(:func:`bandelets.entropy.code_flag_map`). Version 12 lets the loop filter take its taps on the
-other channels over the 5 x 5 square, not only the 3 x 3, and its own taps over a square, not
-only a diamond, and added lossless files (transform code 2,
+(format version 2; version 1 always coded three channels). Format version 3 added the restoration
+byte; version 4 changed the restoration's penalty (a log total variation instead of the total
+variation) and restores a normal map coded with its three channels on the unit sphere
+(:mod:`bandelets.restoration`); version 5 added a second-order term to that penalty, codes a normal
+map of three channels in local frames around its coarser normals (implied by the kind and the
+channel count, weight :data:`NORMAL_MAP_WEIGHT`: no header field) and lets files with local frames
+be restored. Version 6 fixed the basis of Alpert's multiwavelet by construction
+(:func:`bandelets.bandeletize.alpert_matrices`: version 5 took it from an SVD whose rotation
+depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive lifting at the finest
+levels (cdf97 without local frames, :mod:`bandelets.directional`; its directions end the directions
+stream). Version 8 added the vertex count of the source mesh to the geometry-image options. Version
+9 projects the restoration into the bins every :data:`bandelets.restoration.PROJECT_EVERY`
+iterations, not at every one, changed the coefficient stream's contexts (:mod:`bandelets.entropy`:
+backed by coarse contexts, the sign's upper neighbour, the sibling subband, one class per level),
+and added tiled files (a container of files of one tile, :mod:`bandelets.tiling`). Version 10 gave
+the 1D bandelet coefficients contexts of their own (:mod:`bandelets.squarecontexts`: what the
+sibling and parent subbands hold around the square, and the signs of the two channels' coefficients
+square by square), let a normal map coded with its three channels (in local frames) be lifted along
+directions, computes the restoration's gradient in float32 (the steps' images too, where the
+samples' scale allows: :data:`bandelets.restoration.SINGLE_UP_TO`), and has its encoder write the
+fewest restoration iterations that keep 97 % of the best gain
+(:data:`bandelets.encoder.RESTORATION_SHARE`). Version 11 codes the two channels of a normal map of
+layout ``xyz`` as the azimuthal equidistant coordinates of its vectors
+(:func:`bandelets.normalmaps.equidistant`), not ``x, y``, and codes so every map whose vectors lie
+within :data:`bandelets.normalmaps.ONE_WAY` of +z. Version 11 also added the loop filter
+(:mod:`bandelets.loopfilter`), after the streams, reconstructs a bin at its middle
+(:data:`bandelets.quantize.RECONSTRUCTION`, 0.44 of the bin before) and codes the lifting blocks'
+moved flags in the context of their neighbours (:func:`bandelets.entropy.code_flag_map`). Version
+12 lets the loop filter take its taps on the other channels over the 5 x 5 square, not only the 3 x
+3, and its own taps over a square, not only a diamond, and added lossless files (transform code 2,
 :mod:`bandelets.lossless`): the integer samples of every channel of the source (depth 8 or 16),
 predicted and coded in the coefficient stream; the splits and directions streams are empty, the
 file has no restoration, lifting or loop filter, its threshold is 1 and its wavelet levels 1 (no
-meaning), a normal map's channels are the stored ones (3, or 2 of layout ``xy``) and decode to
-the source's values, not renormalised. Version 12 also adds two lifting codes, 13 and 14, that
-lift each pair of samples of a block on its own (:data:`bandelets.directional.PAIR_BEFORE`,
-:data:`bandelets.directional.PAIR_AFTER`) and quantizes the finest wavelet level with a finer
-step, ``T / FINEST_WEIGHT`` (:data:`bandelets.wavelets.FINEST_WEIGHT`). Version 13 turns the
-first tangent of a normal map's local frames towards the direction along which its coarse normals
-turn most (:func:`bandelets.frames.normal_map_frames`), not the x axis projected. Version 14 added the
-folded flag of a normal map (byte 41): the normals of a closed surface sampled on an octahedral
-geometry image (:func:`bandelets.normalmaps.octahedral`), glued across each edge to itself
-reversed, as a geometry image of spherical extension is; the restoration then takes the
-differences across those folds (:mod:`bandelets.restoration`). Only a lossy normal map of three
-channels, square, its side a multiple of ``2**levels``, may be folded. Version 15 may code the two
-channels of a lossy normal map as their Riesz pair (byte 41, :attr:`Header.riesz`,
-:mod:`bandelets.riesz`): the channel along the gradients of a height and the one across them; the
-decoder turns them back at the end of every synthesis. Version 16 codes the significance and the
-first two magnitude decisions of the detail coefficients from their contexts mixed with an
-activity context, and their larger magnitudes in contexts of that activity
-(:func:`bandelets.entropy.code_coefficients`); the header is unchanged. This build reads version 16 only.
+meaning), a normal map's channels are the stored ones (3, or 2 of layout ``xy``) and decode to the
+source's values, not renormalised. Version 12 also adds two lifting codes, 13 and 14, that lift
+each pair of samples of a block on its own (:data:`bandelets.directional.PAIR_BEFORE`,
+:data:`bandelets.directional.PAIR_AFTER`) and quantizes the finest wavelet level with a finer step,
+``T / FINEST_WEIGHT`` (:data:`bandelets.wavelets.FINEST_WEIGHT`). Version 13 turns the first
+tangent of a normal map's local frames towards the direction along which its coarse normals turn
+most (:func:`bandelets.frames.normal_map_frames`), not the x axis projected. Version 14 added the
+folded flag of a normal map (byte 41 until version 16, byte 9 since): the normals of a closed
+surface sampled on an octahedral geometry image (:func:`bandelets.normalmaps.octahedral`), glued
+across each edge to itself reversed, as a geometry image of spherical extension is; the restoration
+then takes the differences across those folds (:mod:`bandelets.restoration`). Only a lossy normal
+map of three channels, square, its side a multiple of ``2**levels``, may be folded. Version 15 may
+code the two channels of a lossy normal map as their Riesz pair (the same byte,
+:attr:`Header.riesz`, :mod:`bandelets.riesz`): the channel along the gradients of a height and the
+one across them; the decoder turns them back at the end of every synthesis. Version 16 codes the
+significance and the first two magnitude decisions of the detail coefficients from their contexts
+mixed with an activity context, and their larger magnitudes in contexts of that activity
+(:func:`bandelets.entropy.code_coefficients`); the header is unchanged. Version 17 packs the
+header: the codes of the transform, wavelet, 1D transform and layout share one byte, the levels,
+channels and depth another, the threshold is a float32 (a float64 before) and the sides and the
+stream lengths LEB128 integers (uint32s before), as are the geometry-image options (the frames flag
+beside the extension, the normal weight a float32, the mesh vertices an LEB128 integer): the 46
+bytes of header and CRC of a 256 x 256 normal map became 27 (1 % of a file at 0.25 bpp, where every
+byte is worth a coefficient). Version 17 also codes the lifting directions of every pass with one
+adaptive model, not one per pass (:func:`bandelets.directional.code_fields`). This build reads
+version 17 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
-40 says so::
+8 says so::
 
     0       1     radius of the channel's own taps (1 to MAX_FILTER_RADIUS) + 4 times the
                   radius of the square of cross-channel taps (0 none, 1: 3 x 3, 2: 5 x 5; 2 or
@@ -104,14 +114,15 @@ only R and G were normal components (a BC5-style map whose blue holds something 
 ambient occlusion): the decoder returns ``x, y, z``. The layouts other than ``xyz`` were added
 within version 6: a file of layout ``xyz`` is read by every version 6 decoder.
 
-Geometry-image options (format version 2), right after the fixed header of a file of kind 2::
+Geometry-image options (format version 2), right after the header's LEB128 integers in a file of
+kind 2::
 
     0       1     wavelet boundary extension: EXTENSION_CODES
-                  (0 symmetric, 1 spherical: cdf97, square, side a multiple of 2**levels)
-    1       1     local frames: 0 off, 1 on (:mod:`bandelets.frames`)
-    2       8     weight of the normal component (float64; 1 when the frames are off)
-    10      4     vertices of the mesh the image was sampled from (uint32, format version 8; 0: none,
-                  else at least 4): the vertex count the mesh decoder aims at by default
+                  (0 symmetric, 1 spherical: cdf97, square, side a multiple of 2**levels),
+                  plus 2 if the local frames are on (:mod:`bandelets.frames`)
+    1       4     weight of the normal component (float32; 1 when the frames are off)
+    5       ...   vertices of the mesh the image was sampled from (LEB128, format version 8; 0:
+                  none, else at least 4): the vertex count the mesh decoder aims at by default
 
 Every field is validated before anything is allocated; :class:`FormatError` (a ``ValueError``)
 names what is wrong. Beyond the size limits, :func:`bandelets.memory.check_memory` refuses a file
@@ -185,7 +196,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 16
+FORMAT_VERSION = 17
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 
@@ -203,6 +214,8 @@ TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
 EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
 #: Layouts of a normal map's source (see above): ``xy`` and ``rg`` are coded as two channels.
 LAYOUT_CODES = {"xyz": 0, "xy": 1, "rg": 2}
+#: Sample depths of the source (0: float), for decoding back to them.
+DEPTH_CODES = {0: 0, 8: 1, 16: 2}
 KINDS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
     tuple, (KIND_CODES, WAVELET_CODES, TRANSFORM_1D_CODES, EXTENSION_CODES, LAYOUT_CODES)
 )
@@ -223,6 +236,7 @@ _KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF, _LAYOUT_O
         LAYOUT_CODES,
     )
 )
+_DEPTH_OF = {code: depth for depth, code in DEPTH_CODES.items()}
 
 #: The encoder's defaults (:class:`bandelets.options.EncodeOptions`): the wavelet, the 1D transform,
 #: and the weight of the normal component of a geometry image in local frames.
@@ -254,16 +268,22 @@ MAX_MEMORY = 2 * 2**30
 #: (``benchmarks/worst_decode.py``, 2048 x 2048 x 1 restored 63 times, 65 ns per sample and
 #: iteration; 1024 x 1024 x 1 restored 100 times: 5.2 s).
 MAX_WORK = 2**28
-#: Range of the threshold a file may hold: the restoration's smoothing, ``(0.01 T)**2``, stays a
-#: normal float, the squares of the largest values (``2**30 T``) stay finite, and no image in any
-#: unit needs a finer or a coarser step.
-MIN_THRESHOLD, MAX_THRESHOLD = 1e-100, 1e100
+#: Range of the threshold a file may hold: powers of two within the normal float32 numbers (the
+#: threshold is a float32 on disk), so the restoration's smoothing, ``(0.01 T)**2``, stays a
+#: normal float64, the squares of the largest values (``2**30 T``) stay finite, and no image in
+#: any unit needs a finer or a coarser step (about 7.5e-37 to 1.3e36).
+MIN_THRESHOLD, MAX_THRESHOLD = 2.0**-120, 2.0**120
 
-_FIXED = struct.Struct("<4sBBBBBBBBIId3IBB")
-#: Size of the smallest possible file: the fixed header and the CRC.
-HEADER_BYTES = _FIXED.size + 4
-#: Options of a geometry image: extension, frames, normal weight, vertices of the source mesh.
-_GEOMETRY = struct.Struct("<BBdI")
+#: Magic, version, kind, the two bytes of codes, restoration, lifting, threshold (then the five
+#: LEB128 integers).
+_FIXED = struct.Struct("<4sBBBBBBf")
+#: Most bytes of an LEB128 integer (below 2**32).
+_MOST_VARINT_BYTES = 5
+#: Size of the smallest possible file: the fixed header, five one-byte integers and the CRC.
+HEADER_BYTES = _FIXED.size + 5 + 4
+#: Options of a geometry image: extension and frames, normal weight (then the LEB128 vertices of
+#: the source mesh).
+_GEOMETRY = struct.Struct("<Bf")
 #: Range of the normal weight a file may hold.
 MIN_NORMAL_WEIGHT, MAX_NORMAL_WEIGHT = 1 / 64, 64.0
 _STREAMS = ("splits", "directions", "coefficients")
@@ -271,6 +291,51 @@ _STREAMS = ("splits", "directions", "coefficients")
 
 class FormatError(ValueError):
     """A .bdl file is corrupt, truncated, hostile or of an unsupported version."""
+
+
+def _single(x: float) -> float:
+    """``x`` rounded to the nearest float32, as the file holds it (as it is where no float32 can
+    hold it: the fields' range checks then refuse it)."""
+    try:
+        return struct.unpack("<f", struct.pack("<f", x))[0]
+    except (OverflowError, struct.error, TypeError):
+        return x
+
+
+def _varint(value: int) -> bytes:
+    """The unsigned LEB128 bytes of ``0 <= value < 2**32``."""
+    if not 0 <= value < 2**32:
+        raise ValueError(f"a header integer from 0 to 2**32 - 1, not {value}")
+    out = bytearray()
+    while True:
+        low, value = value & 127, value >> 7
+        out.append(low | (128 if value else 0))
+        if not value:
+            return bytes(out)
+
+
+def _varints(data: bytes, start: int, count: int) -> tuple[list[int], int]:
+    """``count`` LEB128 integers of ``data`` from ``start``, and the offset after them."""
+    values = []
+    for _ in range(count):
+        value = shift = 0
+        for n in range(_MOST_VARINT_BYTES):
+            if start >= len(data):
+                raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
+            byte = data[start]
+            start += 1
+            value |= (byte & 127) << shift
+            shift += 7
+            if byte < 128:
+                if n and not byte:
+                    raise FormatError("corrupt .bdl file: an integer of the header has a needless byte")
+                break
+        else:
+            raise FormatError("corrupt .bdl file: an integer of the header runs over 5 bytes")
+        if value >= 2**32:
+            raise FormatError("corrupt .bdl file: an integer of the header exceeds 2**32 - 1")
+        values.append(value)
+    return values, start
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -432,6 +497,15 @@ class Header:
     #: 15): 0 not, else the ``sign`` of :func:`bandelets.riesz.forward` (1 or -1).
     riesz: int = 0
 
+    def __post_init__(self) -> None:
+        # The file holds the threshold and the normal weight as float32s (format version 17): a
+        # header holds them so from the start, so that the encoder quantizes with the threshold
+        # the decoder reads.
+        # (A normal map's weight is implied, not stored: it stays as NORMAL_MAP_WEIGHT says.)
+        object.__setattr__(self, "threshold", _single(self.threshold))
+        if self.kind == "geometry-image":
+            object.__setattr__(self, "normal_weight", _single(self.normal_weight))
+
 
 def implied_options(kind: str, channels: int) -> dict:
     """The fields of :class:`Header` that the file does not store for ``kind`` (any kind but a
@@ -441,10 +515,15 @@ def implied_options(kind: str, channels: int) -> dict:
     return {}
 
 
-def streams_offset(kind: str) -> int:
-    """Offset of the first stream in a file of ``kind`` (the fixed header, and the options of a
-    geometry image)."""
-    return _FIXED.size + (_GEOMETRY.size if kind == "geometry-image" else 0)
+def streams_offset(data: bytes) -> int:
+    """Offset of the first stream of a file (after its header, and the options of a geometry
+    image): :class:`FormatError` where its header is cut short or its integers malformed."""
+    if len(data) < _FIXED.size:
+        raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
+    start = _varints(data, _FIXED.size, 5)[1]
+    if data[5] == KIND_CODES["geometry-image"]:
+        start = _varints(data, start + _GEOMETRY.size, 1)[1]
+    return start
 
 
 def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
@@ -462,23 +541,33 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     >>> unpack(data) == (header, (b"", b"", b"ab"))
     True
     """
+    # Values that would run into the next field's bits (the decoder checks the others' meaning).
+    if not (
+        0 <= header.levels < 8
+        and 1 <= header.channels <= 4
+        and header.depth in DEPTH_CODES
+        and 0 <= header.restoration < 128
+        and 0 <= header.lifting < 32
+    ):
+        raise ValueError(f"levels, channels, depth, restoration or lifting out of range: {header}")
+    if not MIN_THRESHOLD <= header.threshold <= MAX_THRESHOLD:
+        raise ValueError(f"threshold must be from {MIN_THRESHOLD:g} to {MAX_THRESHOLD:g}: {header}")
+    if header.threshold != _single(header.threshold):  # the encoder quantized with another T
+        raise ValueError(f"a threshold that is no float32 (Header rounds it): {header}")
     body = _FIXED.pack(
         MAGIC,
         FORMAT_VERSION,
         KIND_CODES[header.kind],
-        TRANSFORM_CODES[header.transform],
-        WAVELET_CODES[header.wavelet],
-        header.levels,
-        header.channels,
-        header.depth + 64 * LAYOUT_CODES[header.layout],
-        TRANSFORM_1D_CODES[header.transform_1d],
-        header.height,
-        header.width,
-        header.threshold,
-        *(len(s) for s in streams),
+        TRANSFORM_CODES[header.transform]
+        + 4 * WAVELET_CODES[header.wavelet]
+        + 32 * TRANSFORM_1D_CODES[header.transform_1d]
+        + 64 * LAYOUT_CODES[header.layout],
+        header.levels + 8 * (header.channels - 1) + 32 * DEPTH_CODES[header.depth],
         header.restoration + (128 if header.loop_filter is not None else 0),
         header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
+        header.threshold,
     )
+    body += b"".join(_varint(n) for n in (header.height, header.width, *map(len, streams)))
     if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.folded and not _can_fold(
@@ -500,9 +589,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"normal weight or mesh vertices: {header}"
             )
     if header.kind == "geometry-image":
-        body += _GEOMETRY.pack(
-            EXTENSION_CODES[header.extension], int(header.frames), header.normal_weight, header.mesh_vertices
-        )
+        body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
+        body += _varint(header.mesh_vertices)
     body += b"".join(streams)
     if header.loop_filter is not None:
         body += _pack_filter(header.loop_filter, header.channels)
@@ -532,7 +620,7 @@ def unpack(
     """
     if len(data) < 4 or data[:4] != MAGIC:
         raise FormatError("not a .bdl file (bad magic number)")
-    if len(data) < _FIXED.size + 4:
+    if len(data) < HEADER_BYTES:
         raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
     fields = _FIXED.unpack_from(data)
     version = fields[1]
@@ -545,15 +633,26 @@ def unpack(
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
     if zlib.crc32(body) != crc:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
-    kind_code, transform_code, wavelet_code, levels, channels, depth, along_code = fields[2:9]
-    height, width, threshold = fields[9:12]
-    lengths, restoration, filtered = fields[12:15], fields[15] % 128, fields[15] // 128
-    lifting, riesz, folded = fields[16] % 32, _RIESZ_OF.get(fields[16] // 32 % 4), fields[16] // 128
-    depth, layout_code = depth % 64, depth // 64
+    kind_code, codes, sizes, restoration, lifting_byte, threshold = fields[2:]
+    (height, width, *lengths), start = _varints(body, _FIXED.size, 5)
+    transform_code, wavelet_code, along_code, layout_code = (
+        codes % 4,
+        codes // 4 % 8,
+        codes // 32 % 2,
+        codes // 64,
+    )
+    levels, channels, depth_code = sizes % 8, sizes // 8 % 4 + 1, sizes // 32
+    restoration, filtered = restoration % 128, restoration // 128
+    lifting, riesz, folded = lifting_byte % 32, _RIESZ_OF.get(lifting_byte // 32 % 4), lifting_byte // 128
+    depth = _DEPTH_OF.get(depth_code)
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
     wavelet, along = _WAVELET_OF.get(wavelet_code), _TRANSFORM_1D_OF.get(along_code)
-    start = streams_offset(kind)
+    if kind == "geometry-image":
+        if len(body) < start + _GEOMETRY.size:
+            raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
+        stored = _GEOMETRY.unpack_from(body, start)
+        (vertices,), start = _varints(body, start + _GEOMETRY.size, 1)
     checks = [
         (kind is not None, f"unknown kind code {kind_code}"),
         (
@@ -562,8 +661,7 @@ def unpack(
         ),
         (transform is not None, f"unknown transform code {transform_code}"),
         (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
-        (1 <= channels <= 4, f"bad channel count {channels}"),
-        (depth in (0, 8, 16), f"bad sample depth {depth}"),
+        (depth is not None, f"bad sample depth code {depth_code}"),
         (
             layout == "xyz" or (layout is not None and kind == "normal-map" and channels == 2),
             f"bad layout code {layout_code} for a {kind} of {channels} channels",
@@ -595,7 +693,7 @@ def unpack(
         ),
         (
             riesz is not None and (not riesz or _can_turn(kind, channels, transform)),
-            f"Riesz code {fields[16] // 32 % 4} for a {kind} of {channels} channels ({transform})",
+            f"Riesz code {lifting_byte // 32 % 4} for a {kind} of {channels} channels ({transform})",
         ),
         (
             lifting <= min(levels, MAX_LIFTING),
@@ -619,7 +717,7 @@ def unpack(
     if not 1 <= levels <= MAX_LEVELS:
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
     if kind == "geometry-image":
-        options = _geometry_options(data, wavelet, levels, height, width)
+        options = _geometry_options(*stored, vertices, wavelet, levels, height, width)
     else:
         options = implied_options(kind, channels)
     loop_filter = _unpack_filter(body[start + sum(lengths) :], channels) if filtered else None
@@ -649,7 +747,7 @@ def unpack(
     return header, tuple(streams)
 
 
-#: Byte 41's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
+#: Byte 9's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
 _RIESZ_CODES = {0: 0, 1: 1, -1: 3}
 _RIESZ_OF = {code: sign for sign, code in _RIESZ_CODES.items()}
 
@@ -678,12 +776,14 @@ def _can_fold(kind: str, channels: int, transform: str, levels: int, height: int
     )
 
 
-def _geometry_options(data: bytes, wavelet: str, levels: int, height: int, width: int) -> dict:
-    """Validated geometry-image options of a file (its fixed header already validated)."""
-    extension, frames, weight, vertices = _GEOMETRY.unpack_from(data, _FIXED.size)
+def _geometry_options(
+    extension: int, weight: float, vertices: int, wavelet: str, levels: int, height: int, width: int
+) -> dict:
+    """Validated geometry-image options of a file, as stored (its fixed header already validated)."""
+    frames = extension // 2 % 2
+    extension -= 2 * frames  # bits above the frames flag make an unknown extension code
     checks = [
         (extension in _EXTENSION_OF, f"unknown extension code {extension}"),
-        (frames in (0, 1), f"bad local frames flag {frames}"),
         (
             bool(frames) or weight == 1.0,
             f"normal weight {weight} without local frames",
