@@ -224,9 +224,16 @@ def test_coarsen_bounds_the_pixels_whatever_the_vertex_count():
     assert coarsen(sphere[:12, :12], 1, most=4).shape == (6, 6, 3)  # no odd side
 
 
+def _prints_and_exits_cleanly(code: str, printed: str) -> None:
+    """``code`` run in a Python process of its own prints ``printed`` and exits with status 0 (a
+    fault of the heap aborts the process at exit, after the output)."""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert (done.returncode, done.stdout) == (0, printed), done.stderr[-500:]
+
+
 def test_decode_mesh_in_a_thread_leaves_the_heap_sound():
-    # pymeshlab after numba code in one non-main thread corrupted the heap, and glibc aborted
-    # the process at exit (bandelets.surfaces.meshlab): decode in a thread, in a process of its own.
+    # pymeshlab run from a thread that ends before the exit handlers aborted the process at exit
+    # (bandelets.surfaces.meshlab): decode in a thread, in a process of its own.
     code = (
         "import threading, trimesh\n"
         "from bandelets.surfaces.codec import encode_mesh, decode_mesh\n"
@@ -236,5 +243,25 @@ def test_decode_mesh_in_a_thread_leaves_the_heap_sound():
         "thread.start(); thread.join()\n"
         "print(len(out[0].vertices))\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert (done.returncode, done.stdout) == (0, "162\n"), done.stderr[-500:]
+    _prints_and_exits_cleanly(code, "162\n")
+
+
+def test_pymeshlab_thread_outlives_the_exit_handlers():
+    # pymeshlab's plugins belong to the thread that imported it; MeshLab's PluginManager,
+    # destroyed by the C++ exit handlers, decremented a freed QThreadData when that thread had
+    # ended (a ThreadPoolExecutor's worker is joined at shutdown), and glibc aborted
+    # ("malloc_consolidate(): unaligned fastbin chunk detected"): always when numba's compiler
+    # had run in that thread first (bandelets.surfaces.meshlab).
+    code = (
+        "import numpy as np\n"
+        "from numba import njit\n"
+        "from bandelets.surfaces.meshlab import confined\n"
+        "total = njit(lambda a: a.sum())\n"
+        "@confined\n"
+        "def load():\n"
+        "    total(np.ones(3))\n"
+        "    import pymeshlab\n"
+        "    return pymeshlab.MeshSet().mesh_number()\n"
+        "print(load())\n"
+    )
+    _prints_and_exits_cleanly(code, "0\n")
