@@ -90,8 +90,10 @@ stream lengths LEB128 integers (uint32s before), as are the geometry-image optio
 beside the extension, the normal weight a float32, the mesh vertices an LEB128 integer): the 46
 bytes of header and CRC of a 256 x 256 normal map became 27 (1 % of a file at 0.25 bpp, where every
 byte is worth a coefficient). Version 17 also codes the lifting directions of every pass with one
-adaptive model, not one per pass (:func:`bandelets.directional.code_fields`). This build reads
-version 17 only.
+adaptive model, not one per pass (:func:`bandelets.directional.code_fields`). Version 18 codes
+the approximation's prediction residuals in contexts of their own, of the local gradient and of
+the guide channel's residual (:mod:`bandelets.approximation`); the header is unchanged. This build
+reads version 18 only.
 
 Loop filter (format version 11, the squares since 12), between the streams and the CRC when byte
 8 says so::
@@ -196,7 +198,7 @@ __all__ = [
 ]
 
 MAGIC = b"BDL\x1a"
-FORMAT_VERSION = 17
+FORMAT_VERSION = 18
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.tiling`).
 TILED_CODE = 255
 

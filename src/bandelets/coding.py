@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import directional, entropy
+from . import approximation, directional, entropy
 from .bandeletize import debandeletize_bins
 from .bitstream import Header
 from .layout import approximation_plan, subband_plan
@@ -46,7 +46,11 @@ def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, inde
 
 
 def code_image(
-    coders: tuple, header: Header, trees: list | None = None, quantized: list[np.ndarray] | None = None
+    coders: tuple,
+    header: Header,
+    trees: list | None = None,
+    quantized: list[np.ndarray] | None = None,
+    estimate: bool = False,
 ) -> tuple[list, list, list]:
     """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
 
@@ -57,6 +61,10 @@ def code_image(
     what the previous channel coded, bandelet coefficients included. After a channel's
     bandelet squares, the contexts are given the wavelet coefficients those
     squares decode to.
+
+    ``estimate``: the approximation is coded with version 17's model
+    (:func:`bandelets.entropy.code_coefficients`), not the file's (:mod:`bandelets.approximation`),
+    for the level choice's prices (:mod:`bandelets.levelchoice`): no file is made that way.
 
     Returns
     -------
@@ -72,10 +80,11 @@ def code_image(
         quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
     known = [np.zeros(size, np.int64) for _ in quantized]
     spent = [np.zeros(size) for _ in quantized]
-    approximation = approximation_plan(shape, header.levels)
+    coarse = approximation_plan(shape, header.levels)
     guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
-        entropy.code_coefficients(coeffs, q, approximation, known[c], guides[c], spent[c])
+        code = entropy.code_coefficients if estimate else approximation.code_approximation
+        code(coeffs, q, coarse, known[c], guides[c], spent[c])
     out = []
     for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
         band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
@@ -114,5 +123,5 @@ def code_lifting(coder: entropy.Coder, header: Header, lifting: list | None = No
 
 def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
     """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
-    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directional.N_CONTEXTS, entropy.coefficient_contexts())
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directional.N_CONTEXTS, approximation.N_CONTEXTS)
     return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))

@@ -59,11 +59,17 @@ __all__ = [
     "code_coefficients",
     "code_bit",
     "code_backed",
+    "code_mixed",
+    "median_prediction",
+    "neighbourhood",
+    "elias_gamma",
     "code_raw_bit",
     "octave",
     "registers",
     "keep_registers",
     "POSITION",
+    "SPENT",
+    "COST_SCALE",
 ]
 
 
@@ -92,7 +98,8 @@ _N_SUM = 8
 _SUM_BUCKET = np.array([0, 1, 2, 3, 4, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7], np.int64)
 _EG_PREFIX = 20
 _MAX_PREFIX = 31
-# Context table layout of the coefficient stream.
+# Context table layout of the coefficient stream. Class 0 is the approximation, which files code
+# with :mod:`bandelets.approximation` in contexts of its own after these (format version 18).
 _APPROXIMATION = 0
 #: Largest magnitude a decoded coefficient may have (the quantizer's MAX_INDEX).
 MAX_MAGNITUDE = 2**30
@@ -123,11 +130,6 @@ _BSIGN = _BSIG + (N_CLASSES - _FIRST_BANDELET) * _N_SUM * 3 * _N_GUIDE * N_HINTS
 # octave of the guide's magnitude (``_N_GUIDE_OCTAVES``). The Elias-gamma prefix of the larger
 # magnitudes is read in a context of the class and that activity, backed by the class's, and so is
 # the first bit below its leading one (``_FIRST_BELOW``: the larger half of an octave is the rarer).
-# Not the approximation's residuals, coded as in version 15: the choice of the levels
-# (:mod:`bandelets.levelchoice`) prices a coarse band coded as an approximation against its
-# further levels with this coder, under a margin measured with version 15's, and with the
-# activity of the approximation's values the crease maps at 1 bpp priced 2 levels of 5 or 6 at
-# 0.81 to 0.84 of all the levels (0.92 before), below that margin, and lost 9 dB with them.
 _N_ACTIVITY = 12
 _N_GUIDE_OCTAVES = 6
 _ACTIVITY = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
@@ -406,8 +408,10 @@ def _octave(v, most):
 # takes the registers of a coder's state, codes its decisions, and stores the registers back.
 registers, keep_registers = _registers, _keep
 code_bit, code_backed, code_raw_bit, octave = _code_bit, _code_backed, _code_raw_bit, _octave
-#: Index, in the registers, of the count of bytes written so far.
-POSITION = _POS
+code_mixed = _code_mixed
+#: Index, in the registers, of the count of bytes written so far, and of the ideal code length
+#: spent so far (in ``1 / COST_SCALE`` bits).
+POSITION, SPENT, COST_SCALE = _POS, _SPENT, _COST_SCALE
 
 
 @_kernel
@@ -553,6 +557,9 @@ def _elias_gamma(r, buf, probs, counts, value, base, decoding, coarse=-1, first=
     return out, r
 
 
+elias_gamma = _elias_gamma  # a building block, as above
+
+
 @_kernel
 def _positive(st, buf, probs, counts, values, bases, decoding):
     r = _registers(st)
@@ -593,6 +600,28 @@ def _encode_coefficients(st, buf, probs, counts, q, known, guide, spent, order, 
     )
 
 
+@njit(cache=True, nogil=True, inline="always")
+def neighbourhood(known, positions):
+    """Left, up, up-left and up-right of a bin (``positions``: -1 where absent), replicated
+    where absent as the predictor wants them."""
+    up = known[positions[1]] if positions[1] >= 0 else (known[positions[0]] if positions[0] >= 0 else 0)
+    left = known[positions[0]] if positions[0] >= 0 else up
+    corner = known[positions[2]] if positions[2] >= 0 else up
+    right = known[positions[3]] if positions[3] >= 0 else up
+    return left, up, corner, right
+
+
+@njit(cache=True, nogil=True, inline="always")
+def median_prediction(known, positions):
+    """The median edge detector of LOCO-I on the bins ``known`` around ``positions``."""
+    left, up, corner, _ = neighbourhood(known, positions)
+    if corner >= max(left, up):
+        return min(left, up)
+    if corner <= min(left, up):
+        return max(left, up)
+    return left + up - corner
+
+
 # Inlined into a decoder and an encoder, each compiled with its constant ``decoding``: 8 % faster.
 @njit(cache=True, nogil=True, inline="always")
 def _coefficients(
@@ -613,9 +642,10 @@ def _coefficients(
         near = _SUM_BUCKET[total + min(sibling, 2)]
         parent = min(coarser, 2)
         activity = 2 * left + 2 * up + corner + across + 2 * coarser + sibling
-        # The approximation is smooth: code its residual from the median predictor of
-        # LOCO-I (left, up, up-left); details are coded as they are.
-        predicted = _median_prediction(known, neighbours[i]) if cls == _APPROXIMATION else 0
+        # An approximation given here (the level choice's estimate, :mod:`bandelets.levelchoice`)
+        # is coded as in version 17: its residual from the median predictor in the contexts of
+        # class 0. Files code it with :mod:`bandelets.approximation`.
+        predicted = median_prediction(known, neighbours[i]) if cls == _APPROXIMATION else 0
         value = q[at] - predicted
         m = abs(value)
         g = min(abs(guide[at]), 2) if guide.shape[0] > 0 else 3
@@ -741,20 +771,6 @@ def _bandelet_sign(cls, sign_ctx, leader, agree):
     if leader != 0:
         sign_ctx += 3 if (leader > 0) == (agree >= 0) else 6
     return sign_ctx, _BSIGN + (cls - _FIRST_BANDELET) * 54 + sign_ctx + (27 if agree != 0 else 0)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _median_prediction(known, neighbours):
-    left = known[neighbours[0]] if neighbours[0] >= 0 else 0
-    up = known[neighbours[1]] if neighbours[1] >= 0 else left
-    if neighbours[0] < 0:
-        left = up
-    corner = known[neighbours[2]] if neighbours[2] >= 0 else up
-    if corner >= max(left, up):
-        return min(left, up)
-    if corner <= min(left, up):
-        return max(left, up)
-    return left + up - corner
 
 
 def coefficient_contexts() -> int:

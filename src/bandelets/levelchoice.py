@@ -24,6 +24,17 @@ not see. On fandisk's normal map at 256, three levels of five gained +0.17 to +0
 lost up to 0.46 dB (estimate 0.987 to 0.994): +0.22 dB BD-PSNR on fandisk's, bunny's unchanged
 (``benchmarks/rd_defaults.py``).
 
+The prices code the approximation as format version 17 did (its median residuals in the detail
+coefficients' class 0, ``code_image(..., estimate=True)``), not as files code it since version 18
+(:mod:`bandelets.approximation`): the margins above were measured with that model, and the new
+one prices the smooth coarse band of the crease maps as cheaply as a faceted one, so that they
+took 2 levels at 1 bpp (the estimate's raw ratio 0.71 against 0.94, the fandisk from the top at
+0.68 to 0.74), where the finer levels' lifting, which the estimate misses, makes all the levels
+win: the 512 x 512 crease map at 1 bpp decoded 63.61 dB instead of 73.10, -1.26 dB BD-PSNR over
+format 17, the 256 one -0.34 (``benchmarks/rd_defaults.py``, with :data:`TRY_WITHIN` at 1.16).
+With version 17's prices the level choices are the same as then and every map of issue 15 gains
+or holds.
+
 A quality target (PSNR, angle) is priced at the first threshold of its search, which may lie far
 from its last (the bevel map at 256 and 35 dB: 0.036, where the file took 0.149), so it keeps all
 the levels more often than a rate target does.
@@ -142,7 +153,7 @@ def levels_to_try(
                 levels=candidate - MIN_LEVELS,
                 threshold=threshold,
             )
-            _, _, spent = code_image(new_coders(), header, None, [q.ravel()])
+            _, _, spent = code_image(new_coders(), header, None, [q.ravel()], estimate=True)
             error = float(np.sum((block - dequantize(q, threshold)) ** 2))
             costs[candidate] += error + LAMBDA * threshold**2 * float(spent[0].sum())
     # All the levels compete at their cost times the margin: a count of fewer is chosen where it
