@@ -21,8 +21,9 @@ Version 17 coded these residuals as detail coefficients of class 0, in contexts 
 own magnitudes (clipped at 2: saturated wherever the surface is not flat) and of the guide's bin
 rather than its residual. On the maps coded with few levels, whose approximation is a large part
 of the file (the fandisk and the bunny rendered from the top at 256, fandisk's normal map:
-20 to 56 % of the coefficient stream at 0.25 bpp), the same bins take 7 to 13 % fewer bytes; on
-the maps of many levels (an approximation of a few dozen bytes) 0 to 4 bytes more. Tried and
+16 to 57 % of the coefficient stream at 0.25 to 2 bpp), the same bins take 4 to 14 % fewer bytes
+(``benchmarks/approximation_bytes.py``); on the maps of many levels (an approximation of a few
+dozen bytes) 0 to 4 bytes more. Tried and
 lost (bytes of the same bins, script not kept): the neighbours' clipped residual sum as the fine
 context instead of the gradient (a third of the gain); the guide's residual at left and up in
 the mixed context (nothing); a prediction of the residual from the guide's, by the ratio of the
@@ -51,6 +52,7 @@ from .entropy import (
     code_mixed,
     elias_gamma,
     keep_registers,
+    median_of,
     median_prediction,
     neighbourhood,
     octave,
@@ -79,7 +81,9 @@ N_CONTEXTS = _SIGNS + 27 + 9
 _kernel = njit(cache=True, nogil=True, _nrt=False)
 
 
-@njit(cache=True, nogil=True, inline="always")
+# One kernel for both sides, ``decoding`` read at run time: the approximation is at most a
+# sixteenth of the bins, where the detail coder's two constant-folded copies save 8 %.
+@_kernel
 def _approximation(
     st, buf, probs, counts, q, known, guide, spent, order, positions, residuals, width, decoding
 ):
@@ -90,8 +94,8 @@ def _approximation(
         at = order[i]
         here = positions[i]
         before = r[SPENT]
-        predicted = median_prediction(known, here)
         left, up, corner, right = neighbourhood(known, here)
+        predicted = median_of(left, up, corner)
         gradient = abs(left - corner) + abs(up - corner) + abs(right - up)
         rl = residuals[i - 1] if here[0] >= 0 else 0
         ru = residuals[i - width] if here[1] >= 0 else 0
@@ -162,20 +166,6 @@ def _approximation(
     return status
 
 
-@_kernel
-def _decode(st, buf, probs, counts, q, known, guide, spent, order, positions, residuals, width):
-    return _approximation(
-        st, buf, probs, counts, q, known, guide, spent, order, positions, residuals, width, True
-    )
-
-
-@_kernel
-def _encode(st, buf, probs, counts, q, known, guide, spent, order, positions, residuals, width):
-    return _approximation(
-        st, buf, probs, counts, q, known, guide, spent, order, positions, residuals, width, False
-    )
-
-
 def code_approximation(
     coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray, spent: np.ndarray
 ) -> None:
@@ -191,7 +181,7 @@ def code_approximation(
         # most twice the largest bin.
         most = 2 * int(np.max(np.abs(q[plan.order]), initial=0)) + 1
         coder.reserve(n * (4 + 2 * most.bit_length()) * 11 // 8 + 64)
-    status = (_decode if coder.decoding else _encode)(
+    status = _approximation(
         coder.state,
         coder.buf,
         coder.probs,
@@ -204,6 +194,7 @@ def code_approximation(
         plan.neighbours,
         np.zeros(n, np.int64),
         width,
+        coder.decoding,
     )
     if status != 0:
         raise CorruptStream("coded approximation stream is corrupt")

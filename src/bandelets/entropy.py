@@ -60,6 +60,7 @@ __all__ = [
     "code_bit",
     "code_backed",
     "code_mixed",
+    "median_of",
     "median_prediction",
     "neighbourhood",
     "elias_gamma",
@@ -615,6 +616,13 @@ def neighbourhood(known, positions):
 def median_prediction(known, positions):
     """The median edge detector of LOCO-I on the bins ``known`` around ``positions``."""
     left, up, corner, _ = neighbourhood(known, positions)
+    return median_of(left, up, corner)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def median_of(left, up, corner):
+    """The median edge detector of LOCO-I: left or up at an edge, the plane through the three
+    elsewhere."""
     if corner >= max(left, up):
         return min(left, up)
     if corner <= min(left, up):
