@@ -4,8 +4,8 @@
     python benchmarks/approximation_bytes.py --maps fandisk-top@256 --rates 0.25 0.5
 
 (from the repository root; about a minute.) Each map of ``benchmarks/rd_defaults.py`` is encoded
-with the defaults at each rate; the bins of its file are coded again (``bandelets.coding.code_image``),
-with the approximation in its own contexts (:mod:`bandelets.approximation`, what the file holds)
+with the defaults at each rate; the bins of its file are coded again (``bandelets.coding.image.code_image``),
+with the approximation in its own contexts (:mod:`bandelets.coding.approximation`, what the file holds)
 and as version 17 coded it (``estimate=True``: the detail coefficients' class 0). Prints the ideal
 code length of the approximation under both, in bytes, its share of the coefficient stream, and
 what the whole stream saves, as a share of the file.
@@ -18,9 +18,9 @@ import sys
 from pathlib import Path
 
 import bandelets
-from bandelets.bitstream import unpack
-from bandelets.coding import code_image, new_coders
-from bandelets.decoder import decoded_bins
+from bandelets.codec.decoder import decoded_bins
+from bandelets.coding.image import code_image, new_coders
+from bandelets.format.header import unpack
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rd_defaults import MAPS, _maps  # noqa: E402

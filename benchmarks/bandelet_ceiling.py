@@ -28,18 +28,18 @@ import pywt
 from scipy import ndimage
 
 import bandelets
-from bandelets.bandeletize import bandeletize, transform_rows
-from bandelets.bitstream import TRANSFORMS_1D, Header
-from bandelets.coding import code_image, new_coders
-from bandelets.encoder import encode_with_stats
-from bandelets.geometry import directions
-from bandelets.layout import subband_plan
+from bandelets.codec.encoder import encode_with_stats
+from bandelets.codec.options import EncodeOptions
+from bandelets.coding.image import code_image, new_coders
+from bandelets.coding.order import subband_plan
+from bandelets.format.header import TRANSFORMS_1D, Header
+from bandelets.format.quantizer import quantize
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
-from bandelets.options import EncodeOptions
-from bandelets.quantize import quantize
 from bandelets.samples import bump_normal_map, crease_normal_map
-from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
-from bandelets.wavelets import max_levels, subband_slices
+from bandelets.transform.bandeletize import bandeletize, transform_rows
+from bandelets.transform.bandelets import apply_trees, best_trees, wavelet_coefficients
+from bandelets.transform.geometry import directions
+from bandelets.transform.wavelets import max_levels, subband_slices
 
 RATES = (0.25, 0.5, 1.0, 2.0)
 

@@ -6,7 +6,7 @@ coder's ledger, and
 
 * per class of square (the squares of the wavelet files, the NULL leaves and the bandelet
   leaves of the bandelet files) and per level: the bits per significant coefficient and per
-  coefficient, and how far the current :data:`bandelets.lagrangian.RATE_MODEL` is from them;
+  coefficient, and how far the current :data:`bandelets.search.lagrangian.RATE_MODEL` is from them;
 * fit, per square, ``bits = a * log2 binomial + b * significant + c * sum log2 |m|`` by least
   squares, separately for wavelet squares and bandelet squares (the constants to paste into
   ``RATE_MODEL``);
@@ -30,15 +30,15 @@ from pathlib import Path
 
 import numpy as np
 
-from bandelets.bandeletize import bandeletize
-from bandelets.bitstream import Header
-from bandelets.coding import code_image, new_coders
-from bandelets.geometry import zigzag
-from bandelets.lagrangian import RATE_MODEL, square_features
-from bandelets.quantize import quantize
+from bandelets.coding.image import code_image, new_coders
+from bandelets.format.header import Header
+from bandelets.format.quantizer import quantize
 from bandelets.samples import crease_normal_map
-from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
-from bandelets.wavelets import max_levels, subband_slices
+from bandelets.search.lagrangian import RATE_MODEL, square_features
+from bandelets.transform.bandeletize import bandeletize
+from bandelets.transform.bandelets import apply_trees, best_trees, wavelet_coefficients
+from bandelets.transform.geometry import zigzag
+from bandelets.transform.wavelets import max_levels, subband_slices
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fixed_threshold_rd import maps  # noqa: E402

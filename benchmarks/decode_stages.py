@@ -3,9 +3,9 @@
 The crease normal map of ``--size`` coded at 1 bpp with the defaults (``benchmarks/speed.py``'s
 file), then, ``--repeat`` times, a whole ``bandelets.decode(data, restore=False)`` and each of its
 stages on its own: parsing the container, entropy decoding (quadtrees, directions and bins:
-:func:`bandelets.decoder.decoded_bins`), dequantization and inverse transform (the first step of
-:func:`bandelets.decoder.restorations`) and the output (unit normals,
-:func:`bandelets.decoder.decoded_image`). Medians of wall and process CPU time (all threads),
+:func:`bandelets.codec.decoder.decoded_bins`), dequantization and inverse transform (the first step of
+:func:`bandelets.codec.decoder.restorations`) and the output (unit normals,
+:func:`bandelets.codec.decoder.decoded_image`). Medians of wall and process CPU time (all threads),
 with OpenJPEG's decode of the same map (16-bit, as ``speed.py`` codes it) timed in the same run.
 
     python benchmarks/decode_stages.py [--size 512] [--repeat 15]
@@ -22,8 +22,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.bitstream import unpack
-from bandelets.decoder import decoded_bins, decoded_image, restorations
+from bandelets.codec.decoder import decoded_bins, decoded_image, restorations
+from bandelets.format.header import unpack
 from bandelets.samples import crease_normal_map
 
 

@@ -5,9 +5,9 @@ encoder with and without the directions, on the generated crease normal map.
 
 Prints the process CPU time (median of ``--repeat``; all threads) of an analysis and of a
 synthesis of the map's two channels (x, y) over 6 levels, lifted along the directions
-:func:`bandelets.directional.analysis` chooses at ``--threshold`` and plain
-(:func:`bandelets.wavelets.wavedec`, :func:`bandelets.wavelets.waverec`), of that direction
-search, of the check that the directions pay (:func:`bandelets.directional.pays`), then the CPU
+:func:`bandelets.transform.directional.analysis` chooses at ``--threshold`` and plain
+(:func:`bandelets.transform.wavelets.wavedec`, :func:`bandelets.transform.wavelets.waverec`), of that direction
+search, of the check that the directions pay (:func:`bandelets.transform.directional.pays`), then the CPU
 time of ``bandelets.encode(map, bpp=1, kind="normal-map")`` and of its decode with
 ``lifting=False`` and by default, with OpenJPEG's encode of the same map in the same run.
 """
@@ -21,9 +21,9 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets import directional
 from bandelets.samples import crease_normal_map
-from bandelets.wavelets import wavedec, waverec
+from bandelets.transform import directional
+from bandelets.transform.wavelets import wavedec, waverec
 
 LEVELS = 6
 

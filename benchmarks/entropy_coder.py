@@ -4,7 +4,7 @@ Codes the same 1,000,000 context-modelled binary decisions (a skewed source, 64 
 contexts) three ways and prints the time of each:
 
 * this package's range coder, compiled with numba together with its adaptation
-  (``bandelets.entropy.code_flags``);
+  (``bandelets.coding.entropy.code_flags``);
 * ``constriction``'s range coder, called from Python once per decision with an adaptive
   Bernoulli model updated in Python (what context modelling that depends on just-decoded
   values forces on a library coder);
@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from bandelets import entropy
+from bandelets.coding import entropy
 
 N = 1_000_000
 N_PY = 50_000  # the per-call loop is timed on a slice and scaled
@@ -36,7 +36,7 @@ def main() -> None:
     entropy.code_flags(coder, bits, contexts)
     ours = time.perf_counter() - start
     size = len(coder.finish())
-    print(f"bandelets.entropy (numba)      {ours * 1e9 / N:8.1f} ns/decision  {size} bytes")
+    print(f"bandelets.coding.entropy (numba)      {ours * 1e9 / N:8.1f} ns/decision  {size} bytes")
     try:
         import constriction
     except ImportError:

@@ -4,7 +4,7 @@
 
 (from the repository root, a few seconds; MAP: a PNG normal map, default the generated
 256 x 256 crease map.) Encodes the map with the defaults (``bandelets.encode(kind="normal-map",
-bpp=B)``, with ``lifting=True`` if asked) and with AVIF as :mod:`bandelets.anchors` drives it,
+bpp=B)``, with ``lifting=True`` if asked) and with AVIF as :mod:`bandelets.apps.anchors` drives it,
 both decoded from their files, and prints their squared error summed near the creases (within
 two pixels of the 10 % largest gradients) and elsewhere, then the error of each wavelet level
 (the error images put through the CDF 9/7 analysis, x and y channels), as the ratio ours /
@@ -19,11 +19,11 @@ import numpy as np
 from scipy import ndimage
 
 import bandelets
-from bandelets import anchors
-from bandelets.files import read_array
+from bandelets.apps import anchors
+from bandelets.io.files import read_array
 from bandelets.metrics import bits_per_pixel, psnr, unit_vectors
 from bandelets.samples import crease_normal_map
-from bandelets.wavelets import max_levels, subband_slices, wavedec
+from bandelets.transform.wavelets import max_levels, subband_slices, wavedec
 
 
 def main() -> None:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import bandelets
-from bandelets.bitstream import unpack
+from bandelets.format.header import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 from bandelets.samples import bump_normal_map, crease_normal_map
 

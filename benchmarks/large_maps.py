@@ -9,7 +9,7 @@ the decode (Linux: VmHWM, reset once the map, or the file, is made; imports and 
 itself included; the decode's in a new process), and the PSNR of the decoded map. ``--uint8``
 holds the map as 8-bit samples, as read from a PNG (its float64 array alone is 1.5 GiB at 8192
 x 8192). Maps are coded as the library's default does: in one piece when that fits the memory
-limit, in tiles of 512 above (:func:`bandelets.memory.tile_side`); ``--tile N`` for tiles at any
+limit, in tiles of 512 above (:func:`bandelets.format.limits.tile_side`); ``--tile N`` for tiles at any
 size.
 
     python benchmarks/large_maps.py 4096 [--no-restore] [--uint8] [--tile 512]
@@ -27,9 +27,9 @@ import imagecodecs
 import numpy as np
 
 import bandelets
+from bandelets.codec.tiles import header_of
 from bandelets.metrics import psnr
 from bandelets.samples import crease_normal_map
-from bandelets.tiling import header_of
 
 
 def _peak_mib() -> float:

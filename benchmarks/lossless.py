@@ -6,7 +6,7 @@ mode, and its time against OpenJPEG's.
 (from the repository root; about a minute.) The maps: the shared real normal maps as their PNG
 holds them (the acacia door's blue is its ambient occlusion), and the generated crease and bumps
 maps (:mod:`bandelets.samples`) as 8 and 16-bit samples at 256 and 512. Each file is decoded and
-checked against its samples (:func:`bandelets.anchors.encode_lossless` checks the anchors'). AVIF
+checked against its samples (:func:`bandelets.apps.anchors.encode_lossless` checks the anchors'). AVIF
 takes at most 12 bits: no 16-bit entry. Times: the median of three runs, encoding and decoding
 in memory, OpenJPEG's reversible encoding of the same samples timed in the same run.
 """
@@ -21,8 +21,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets import anchors
-from bandelets.files import from_samples, to_samples
+from bandelets.apps import anchors
+from bandelets.io.files import from_samples, to_samples
 from bandelets.samples import bump_normal_map, crease_normal_map
 
 CODECS = ("jpegxl", "avif", "jpeg2000")

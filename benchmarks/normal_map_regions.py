@@ -24,13 +24,13 @@ import numpy as np
 from scipy import ndimage
 
 import bandelets
-from bandelets import anchors
-from bandelets.bitstream import unpack
-from bandelets.coding import code_image, new_coders
-from bandelets.decoder import decoded_bins
-from bandelets.files import read_array
+from bandelets.apps import anchors
+from bandelets.codec.decoder import decoded_bins
+from bandelets.coding.image import code_image, new_coders
+from bandelets.format.header import unpack
+from bandelets.io.files import read_array
 from bandelets.metrics import psnr, unit_vectors
-from bandelets.wavelets import subband_slices
+from bandelets.transform.wavelets import subband_slices
 
 BORDER = 8
 

@@ -13,7 +13,7 @@ object-space maps rendered from them (``fandisk-top@256``, ``bunny-top@256``: 16
 ``rd_normal_maps.py --rendered``; ``fandisk-oblique`` and 512 on request); a map whose
 file is absent is skipped with a message. For each, at 0.25 to 2 bpp,
 ``bandelets.encode(map, bpp=B, kind="normal-map", depth=D)`` and AVIF as
-:mod:`bandelets.anchors` drives it (4:4:4, identity matrix, speed 2), every point measured
+:mod:`bandelets.apps.anchors` drives it (4:4:4, identity matrix, speed 2), every point measured
 from its file (bpp ``8 x bytes / pixels``, PSNR of the decoded vectors renormalised). Prints the
 points and the BD-PSNR of the defaults over AVIF and, with ``--against``, over the defaults of
 the run saved there (``--save`` writes this run's curves as JSON; ``--avif`` takes AVIF's curves
@@ -35,8 +35,8 @@ from pathlib import Path
 import numpy as np
 
 import bandelets
-from bandelets import anchors
-from bandelets.bitstream import unpack
+from bandelets.apps import anchors
+from bandelets.format.header import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -27,7 +27,7 @@ the map's unit vectors (:func:`bandelets.metrics.psnr`, kind ``normal-map``). Th
   Riesz pair where it pays, as in the defaults);
 * ``plain``: the same coder without any geometry nor the Riesz pair (``--transform wavelet
   --no-lifting --no-riesz``: the coder of format version 14 without geometry);
-* the anchors as :mod:`bandelets.anchors` drives them (8-bit samples, as the PNG): OpenJPEG,
+* the anchors as :mod:`bandelets.apps.anchors` drives them (8-bit samples, as the PNG): OpenJPEG,
   libavif (4:4:4, identity matrix, speed 2), libjxl (effort 9).
 
 ``acacia_door_bottom_n.png`` stores X and Y only (red, green; blue holds ambient occlusion), as
@@ -38,7 +38,7 @@ default, over every other codec, positive: the first better) are printed and sto
 ``benchmarks/rd-normal-maps-samples-SIZE.md``; ``--results PATH`` elsewhere).
 
 Lossless points. The real maps are 8-bit samples: under a rate target that its lossless file
-fits, ``bandelets encode`` writes that file (:mod:`bandelets.lossless`), of infinite PSNR, at
+fits, ``bandelets encode`` writes that file (:mod:`bandelets.coding.lossless`), of infinite PSNR, at
 its own rate, below the target. The tables print ``lossless (rate)`` for it; a BD-PSNR is
 computed on the finite points of both curves only, over the rates both cover (a curve that ends
 in a lossless file is cut where it turns lossless: the BD says nothing about the rates above,
@@ -46,7 +46,7 @@ where that file beats every finite point). The tables say up to which rate each 
 second table keeps each curve's first lossless point at the other curve's best finite PSNR: a
 lower bound of what the exact file is worth against it, over the whole common range. Then
 the lossless rate of every map by each codec at its strongest lossless setting
-(:func:`bandelets.anchors.encode_lossless`: ``bandelets encode --lossless``, ``cjxl -d 0 -e 9``,
+(:func:`bandelets.apps.anchors.encode_lossless`: ``bandelets encode --lossless``, ``cjxl -d 0 -e 9``,
 ``avifenc --lossless -s 2``, OpenJPEG reversible, PNG at zlib level 9), each file decoded and
 checked to give the samples back.
 """
@@ -61,9 +61,9 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets import anchors
-from bandelets.bitstream import unpack
-from bandelets.files import from_samples, write_atomic
+from bandelets.apps import anchors
+from bandelets.format.header import unpack
+from bandelets.io.files import from_samples, write_atomic
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
 

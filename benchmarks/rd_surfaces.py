@@ -35,8 +35,8 @@ import sys
 import time
 from pathlib import Path
 
-from bandelets.cli import main
-from bandelets.files import write_array
+from bandelets.apps.cli import main
+from bandelets.io.files import write_array
 from bandelets.samples import crease_normal_map
 from bandelets.surfaces.codec import load_mesh, make_geometry_image
 

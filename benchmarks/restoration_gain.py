@@ -11,7 +11,7 @@ one. Surfaces: the generated crease and bumps normal maps (bandelets, CDF 9/7) a
         [--edge E] [--step S] [--second-order W] [--second-edge E2] [--project-every P]
 
 ``--edge``, ``--step``, ``--second-order``, ``--second-edge`` and ``--project-every`` replace
-:data:`bandelets.restoration.EDGE`, ``STEP``, ``SECOND_ORDER``, ``SECOND_EDGE`` and
+:data:`bandelets.restore.restoration.EDGE`, ``STEP``, ``SECOND_ORDER``, ``SECOND_EDGE`` and
 ``PROJECT_EVERY`` for this run
 (encoder and decoder alike), to measure other choices of the decoder's constants; files made
 that way are not .bdl files any other build decodes the same. ``--second-order 0 --edge 0.5``
@@ -26,9 +26,9 @@ import time
 from pathlib import Path
 
 import bandelets
-from bandelets import restoration
-from bandelets.bitstream import unpack
+from bandelets.format.header import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
+from bandelets.restore import restoration
 from bandelets.samples import bump_normal_map, crease_normal_map
 
 

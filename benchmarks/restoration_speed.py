@@ -1,7 +1,7 @@
 """What the decoder-side restoration costs, beside OpenJPEG in the same run.
 
 The generated crease normal map of side ``--size`` encoded at 1 bpp with the defaults; then, over
-``--repeat`` runs: the process CPU time of the restoration alone (:func:`bandelets.decoder.restorations`
+``--repeat`` runs: the process CPU time of the restoration alone (:func:`bandelets.codec.decoder.restorations`
 up to the count the file asks for, from the decoded bins: all threads), the wall and CPU time of
 :func:`bandelets.decode`, of the encode, and the wall time of OpenJPEG's encode of the same map
 (16-bit, the figure to divide by on a shared machine). Prints medians, one line. Run it with
@@ -21,7 +21,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets import bitstream, decoder
+from bandelets.codec import decoder
+from bandelets.format import header as bitstream
 from bandelets.samples import crease_normal_map
 
 

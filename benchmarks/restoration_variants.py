@@ -7,10 +7,10 @@ Each map is encoded once per rate with the defaults but ``restore=False`` (the f
 under ``--cache``: a restored file has the same bytes but for the header's iteration count). The
 restoration of this build is then run on the decoded bins as the encoder runs it: every iteration
 measured against the source (as the encoder measures, at the source's depth), the count the
-encoder would write (the fewest iterations keeping :data:`bandelets.encoder.RESTORATION_SHARE` of
-the best gain, up to :data:`bandelets.encoder._RESTORATION_PATIENCE` past the best). Printed per
+encoder would write (the fewest iterations keeping :data:`bandelets.codec.encoder.RESTORATION_SHARE` of
+the best gain, up to :data:`bandelets.codec.encoder._RESTORATION_PATIENCE` past the best). Printed per
 point: the plain PSNR, the restored PSNR at that count, the count and the restoration's time
-(without the loop filter that follows it, :mod:`bandelets.loopfilter`);
+(without the loop filter that follows it, :mod:`bandelets.restore.loopfilter`);
 per map the mean gain over plain dequantization (the files are the same, so this is the BD-PSNR of
 the restoration at equal rates). Compare two builds (or two settings) by the restored columns.
 """
@@ -25,9 +25,11 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets import encoder, metrics, restoration
-from bandelets.bitstream import FORMAT_VERSION, unpack
-from bandelets.decoder import decoded_bins, restorations
+from bandelets import metrics
+from bandelets.codec import encoder
+from bandelets.codec.decoder import decoded_bins, restorations
+from bandelets.format.header import FORMAT_VERSION, unpack
+from bandelets.restore import restoration
 from bandelets.samples import crease_normal_map
 
 HERE = Path(__file__).resolve().parent
@@ -87,7 +89,11 @@ def main() -> None:
     parser.add_argument("--cache", type=Path, default=Path("out/restoration-variants"))
     parser.add_argument("--no-lifting", action="store_true", help="files coded with --no-lifting")
     parser.add_argument(
-        "--set", action="append", default=[], metavar="NAME=VALUE", help="a constant of bandelets.restoration"
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a constant of bandelets.restore.restoration",
     )
     args = parser.parse_args()
     for assignment in args.set:

@@ -1,13 +1,13 @@
-"""How the encoder's choice of the Riesz pair (:mod:`bandelets.riesz`) does, map by map and rate by rate.
+"""How the encoder's choice of the Riesz pair (:mod:`bandelets.transform.riesz`) does, map by map and rate by rate.
 
     python benchmarks/riesz_choice.py [--maps bevel@256 crease@256 ...] [--rates 0.25,0.5,1,2]
 
 (from the repository root; about 10 minutes for the default maps on the 2-core machine.) The
 maps are those of ``benchmarks/rd_defaults.py`` that are coded as two channels (a map whose file
 is absent is skipped with a message). For each map: the share of its coded channels' energy that
-no height explains (``||g'||^2 / (||g||^2 + ||g'||^2)``, the sign :func:`bandelets.riesz.oriented`
+no height explains (``||g'||^2 / (||g||^2 + ||g'||^2)``, the sign :func:`bandelets.transform.riesz.oriented`
 takes), then for each rate the ratio the encoder decides on
-(:func:`bandelets.encoder._riesz_pair`: the pair's cost estimate over the channels'), and the
+(:func:`bandelets.codec.encoder._riesz_pair`: the pair's cost estimate over the channels'), and the
 PSNR of the files with the pair forced (``riesz=True``), without it (``riesz=False``) and as the
 defaults choose, every file written and decoded (``lossless=False``: the 8-bit maps' lossless
 files would answer the high rates). Last, the time of one turn at 512 x 512 (forward, float32
@@ -27,12 +27,14 @@ from pathlib import Path
 import numpy as np
 
 import bandelets
-from bandelets import encoder, metrics, normalmaps, riesz
-from bandelets.bitstream import unpack
-from bandelets.options import EncodeOptions
+from bandelets import metrics
+from bandelets.codec import encoder, normalmaps
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import unpack
 from bandelets.samples import crease_normal_map
-from bandelets.transform import wavelet_coefficients
-from bandelets.wavelets import max_levels
+from bandelets.transform import riesz
+from bandelets.transform.bandelets import wavelet_coefficients
+from bandelets.transform.wavelets import max_levels
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rd_defaults import _maps  # noqa: E402

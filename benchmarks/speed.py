@@ -12,10 +12,10 @@ with ``--memory``, the peak resident memory of an encode and of a decode of each
 a child process whose high-water mark is reset once the map or file is made, Linux only; from
 8192 x 8192 on, the map is held as 8-bit samples, as read from a PNG: its float64 array alone
 would take 1.5 GiB). Maps are coded as the library's default does (in one piece when that fits
-the memory limit, in tiles of 512 above: :func:`bandelets.memory.tile_side`), or in tiles of
+the memory limit, in tiles of 512 above: :func:`bandelets.format.limits.tile_side`), or in tiles of
 ``--tile`` at any size. ``--map bevel``: the generated 8-bit bevel map instead
 (:func:`bandelets.samples.bevel_normal_map`, given to us as its samples, to the anchors as its
-vectors, as the crease map is), whose files are Riesz pairs (:mod:`bandelets.riesz`); with
+vectors, as the crease map is), whose files are Riesz pairs (:mod:`bandelets.transform.riesz`); with
 ``--no-riesz``, its channels.
 
     python benchmarks/speed.py [--sizes 512,2048,4096] [--repeat 3] [--memory] [--no-cold-start] [--tile 512]
@@ -37,10 +37,10 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.files import from_samples
-from bandelets.memory import check_encodable
+from bandelets.codec.tiles import header_of
+from bandelets.format.limits import check_encodable
+from bandelets.io.files import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
-from bandelets.tiling import header_of
 
 #: ``--map``: the source of each size, as the memory's child process makes it.
 MAPS = {
@@ -126,7 +126,10 @@ def main() -> None:
     parser.add_argument("--sizes", default="256,512,1024,2048")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument(
-        "--tile", type=int, default=0, help="tile side (bandelets.tiling; default 0: the library's choice)"
+        "--tile",
+        type=int,
+        default=0,
+        help="tile side (bandelets.codec.tiles; default 0: the library's choice)",
     )
     parser.add_argument("--memory", action="store_true", help="peak RSS of an encode and a decode per size")
     parser.add_argument(

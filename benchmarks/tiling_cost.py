@@ -1,4 +1,4 @@
-"""What coding in tiles costs (:mod:`bandelets.tiling`): PSNR of the tiled and the untiled coder at
+"""What coding in tiles costs (:mod:`bandelets.codec.tiles`): PSNR of the tiled and the untiled coder at
 the same rates, on generated normal maps, and the error along the tile borders.
 
 For each map and target rate: the bpp and PSNR of the tiled file (default tiles) and of the
@@ -23,11 +23,11 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.encoder import encode_with_stats
+from bandelets.codec.encoder import encode_with_stats
+from bandelets.codec.options import EncodeOptions
+from bandelets.codec.tiles import cuts
 from bandelets.metrics import bits_per_pixel, psnr
-from bandelets.options import EncodeOptions
 from bandelets.samples import bump_normal_map, crease_normal_map
-from bandelets.tiling import cuts
 
 
 def _border_mask(size: int, tile: int, width: int = 2) -> np.ndarray:

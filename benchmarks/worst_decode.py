@@ -2,7 +2,7 @@
 
 The restoration is what can make a small file slow to decode (a few hundred bytes can describe
 an image of millions of samples restored for 100 iterations): ``max_work``
-(:func:`bandelets.memory.check_work`) bounds it. For each size, a near-empty image is coded
+(:func:`bandelets.format.limits.check_work`) bounds it. For each size, a near-empty image is coded
 without restoration, then its header asks for as many iterations as the default ``max_work``
 allows; the decode is timed (wall and process CPU) beside OpenJPEG's decode of a 16-bit image of
 the same size, with the time per iteration and per sample-iteration.
@@ -20,8 +20,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.bitstream import MAX_RESTORATION, MAX_WORK, pack, unpack
-from bandelets.memory import restoration_work
+from bandelets.format.header import MAX_RESTORATION, MAX_WORK, pack, unpack
+from bandelets.format.limits import restoration_work
 
 
 def main() -> None:

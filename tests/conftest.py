@@ -14,7 +14,7 @@ def straight_edge(
     """A blurred straight edge (tanh profile) through the centre of the image.
 
     The edge runs along the direction ``(cos a, sin a)`` in (x = column, y = row)
-    coordinates, the convention of :func:`bandelets.geometry.directions`; values are in
+    coordinates, the convention of :func:`bandelets.transform.geometry.directions`; values are in
     [-1, 1].
     """
     rows, cols = shape or (size, size)

@@ -7,7 +7,7 @@ every candidate in full (no early exit), the coding plans by array arithmetic, t
 quantizer by array operations. Floating-point sums are accumulated in the same order as in
 the compiled code (element by element, coarse first), so that the results, and the files,
 are bit-identical; the values of ``lgamma`` and ``log2`` are those of the C library, the
-tables of :mod:`bandelets.lagrangian` (checked against the compiled calls in
+tables of :mod:`bandelets.search.lagrangian` (checked against the compiled calls in
 ``test_reference.py``).
 
 :func:`patched` swaps them into the codec, so that ``bandelets.encode`` and
@@ -21,12 +21,17 @@ import math
 
 import numpy as np
 
-from bandelets import coding, decoder, encoder, lagrangian, quadtree, transform, treecoding
-from bandelets.bandeletize import ORDER, alpert_matrices
-from bandelets.geometry import directions, zigzag
-from bandelets.layout import Segment, subband_box
-from bandelets.quantize import MAX_INDEX, RECONSTRUCTION
-from bandelets.wavelets import spherical_folds, subband_norms, subband_slices
+from bandelets.codec import decoder, encoder
+from bandelets.coding import image as coding
+from bandelets.coding import trees as treecoding
+from bandelets.coding.order import Segment, subband_box
+from bandelets.format.quantizer import MAX_INDEX, RECONSTRUCTION
+from bandelets.search import lagrangian
+from bandelets.transform import bandelets as transform
+from bandelets.transform import quadtree
+from bandelets.transform.bandeletize import ORDER, alpert_matrices
+from bandelets.transform.geometry import directions, zigzag
+from bandelets.transform.wavelets import spherical_folds, subband_norms, subband_slices
 
 # ---------------------------------------------------------------------------------------------
 # Quantizer.
@@ -195,7 +200,7 @@ def best_directions(
     hints=None,
     model=lagrangian.RATE_MODEL,
 ):
-    """:func:`bandelets.lagrangian.best_directions`, one square and one direction at a time."""
+    """:func:`bandelets.search.lagrangian.best_directions`, one square and one direction at a time."""
     null_bits, direction_bits = lagrangian.geometry_bits(width, model)
     orders = directions(width)[1]
     n_dirs = len(orders)
@@ -369,7 +374,7 @@ def cell_maps(tree):
 
 
 # ---------------------------------------------------------------------------------------------
-# The 2D CDF 9/7 lifting in numpy (bandelets.lifting compiles it), split and interleaved at
+# The 2D CDF 9/7 lifting in numpy (bandelets.transform.lifting compiles it), split and interleaved at
 # every step; the raw transform, before the subbands are normalised.
 
 _ALPHA, _BETA, _GAMMA, _DELTA, _ZETA = (
@@ -453,7 +458,7 @@ def _scaled(c, levels, divide):
 
 
 def wavedec(x, levels, extension="symmetric"):
-    """bandelets.wavelets.wavedec with cdf97: the raw transform, each subband times its norm."""
+    """bandelets.transform.wavelets.wavedec with cdf97: the raw transform, each subband times its norm."""
     return _scaled(cdf97_dec(x, levels, extension), levels, False)
 
 

@@ -1,4 +1,4 @@
-"""The external anchors (bandelets.anchors): rate targeting, settings, decoding."""
+"""The external anchors (bandelets.apps.anchors): rate targeting, settings, decoding."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import imagecodecs
 import numpy as np
 import pytest
 
-from bandelets import anchors
+from bandelets.apps import anchors
 from bandelets.metrics import psnr
 from bandelets.samples import blurred_edge, crease_normal_map
 

@@ -1,14 +1,14 @@
-"""The coarse approximation's coder (bandelets.approximation, format version 18)."""
+"""The coarse approximation's coder (bandelets.coding.approximation, format version 18)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bandelets import entropy
-from bandelets.approximation import N_CONTEXTS, code_approximation
-from bandelets.entropy import Coder, CorruptStream
-from bandelets.layout import approximation_plan
+from bandelets.coding import entropy
+from bandelets.coding.approximation import N_CONTEXTS, code_approximation
+from bandelets.coding.entropy import Coder, CorruptStream
+from bandelets.coding.order import approximation_plan
 
 SHAPE, LEVELS = (128, 96), 2  # an approximation of 32 x 24 bins
 

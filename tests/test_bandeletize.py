@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.bandeletize import bandeletize, debandeletize, transform_rows
-from bandelets.bitstream import TRANSFORMS_1D
-from bandelets.geometry import directions, zigzag
-from bandelets.quadtree import best_quadtree
+from bandelets.format.header import TRANSFORMS_1D
+from bandelets.transform.bandeletize import bandeletize, debandeletize, transform_rows
+from bandelets.transform.geometry import directions, zigzag
+from bandelets.transform.quadtree import best_quadtree
 
 
 @pytest.mark.parametrize("kind", TRANSFORMS_1D)

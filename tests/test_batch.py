@@ -19,9 +19,9 @@ import pytest
 pytest.importorskip("distributed")
 
 import bandelets  # noqa: E402
-from bandelets.batching import COLUMNS, MANIFEST, batch, collect_inputs  # noqa: E402
-from bandelets.cli import main  # noqa: E402
-from bandelets.files import read_array  # noqa: E402
+from bandelets.apps.batch import COLUMNS, MANIFEST, batch, collect_inputs  # noqa: E402
+from bandelets.apps.cli import main  # noqa: E402
+from bandelets.io.files import read_array  # noqa: E402
 from bandelets.metrics import psnr  # noqa: E402
 
 THRESHOLD = 0.05
@@ -225,7 +225,7 @@ def test_parquet_needs_pyarrow(tmp_path, library, monkeypatch):
 
 def test_the_command_line_loads_dask_only_for_batch():
     code = (
-        "import sys\nfrom bandelets.cli import main\n"
+        "import sys\nfrom bandelets.apps.cli import main\n"
         "try:\n    main(['batch', '--help'])\nexcept SystemExit:\n    pass\n"
         "print(sorted(m for m in ('dask', 'distributed', 'pandas') if m in sys.modules))"
     )

@@ -15,7 +15,8 @@ import pytest
 from headerints import leb128, read_integers
 
 import bandelets
-from bandelets.bitstream import (
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import (
     FORMAT_VERSION,
     HEADER_BYTES,
     KINDS,
@@ -35,7 +36,6 @@ from bandelets.bitstream import (
     streams_offset,
     unpack,
 )
-from bandelets.options import EncodeOptions
 
 FIXED_SIZE = 14  # fixed fields, before the five LEB128 integers (sides, stream lengths)
 GEOMETRY_SIZE = 5  # options of a geometry image, before its LEB128 vertex count

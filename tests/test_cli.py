@@ -1,4 +1,4 @@
-"""The command line (bandelets.cli), run in-process except for the start-up checks."""
+"""The command line (bandelets.apps.cli), run in-process except for the start-up checks."""
 
 from __future__ import annotations
 
@@ -21,12 +21,15 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import cli, compilation, decoder, files, show
-from bandelets.bitstream import pack, unpack
-from bandelets.cli import main
-from bandelets.files import SUFFIXES, from_samples, to_samples
-from bandelets.formats import read_exr, read_tiff, write_exr, write_tiff
+from bandelets.apps import cli, show
+from bandelets.apps.cli import main
+from bandelets.codec import decoder
+from bandelets.format.header import pack, unpack
+from bandelets.io import files
+from bandelets.io.files import SUFFIXES, from_samples, to_samples
+from bandelets.io.floatformats import read_exr, read_tiff, write_exr, write_tiff
 from bandelets.metrics import angular_error, psnr
+from bandelets.runtime import compilation
 from bandelets.samples import crease_normal_map
 from bandelets.surfaces.codec import MESH_FORMATS
 
@@ -135,7 +138,7 @@ def test_info_names_the_local_frames_of_a_normal_map(tmp_path, capsys):
     info = json.loads(_ok(capsys, "info", bdl))
     assert (info["channels"], info["frames"], info["normal_weight"]) == (3, True, 0.35)
     assert "extension" not in info
-    assert info["folded"] is False  # not an octahedral geometry image (bandelets.normalmaps.octahedral)
+    assert info["folded"] is False  # not an octahedral geometry image (bandelets.codec.normalmaps.octahedral)
 
 
 def test_16_bit_rgb_normal_map(tmp_path, capsys, crease_map):
@@ -447,7 +450,7 @@ def test_bandelets_script_help_is_fast():
 
 
 def test_the_command_line_takes_the_formats_choices_without_loading_the_codec():
-    code = "import sys, bandelets.cli; print(sorted({'numba', 'numpy'} & set(sys.modules)))"
+    code = "import sys, bandelets.apps.cli; print(sorted({'numba', 'numpy'} & set(sys.modules)))"
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )

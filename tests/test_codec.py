@@ -1,4 +1,4 @@
-"""The bandelet transform end to end, and .bdl encode / decode (bandelets.transform, .encoder, .decoder)."""
+"""The bandelet transform end to end, and .bdl encode / decode (bandelets.transform.bandelets, .encoder, .decoder)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import encoder, metrics
-from bandelets.bitstream import WAVELETS, unpack
-from bandelets.files import as_read, from_samples, to_samples
-from bandelets.lagrangian import LAMBDA
-from bandelets.options import EncodeOptions
-from bandelets.wavelets import padded_shape, subband_slices
+from bandelets import metrics
+from bandelets.codec import encoder
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import WAVELETS, unpack
+from bandelets.io.files import as_read, from_samples, to_samples
+from bandelets.search.lagrangian import LAMBDA
+from bandelets.transform.wavelets import padded_shape, subband_slices
 
 
 def _n_bandelet_squares(b) -> int:
@@ -411,7 +412,7 @@ def test_progress_line_names_every_stage(crease_map, capsys, monkeypatch):
 
     from tqdm import tqdm
 
-    from bandelets import progress
+    from bandelets.runtime import progress
 
     # tqdm redraws at most every 0.1 s: here at every step, so what shows does not hang on timing.
     monkeypatch.setattr(progress, "tqdm", functools.partial(tqdm, mininterval=0, miniters=1))
@@ -434,7 +435,7 @@ def test_xy_beyond_the_rim_are_coded_as_given(crease_map):
 
 
 def test_maps_facing_one_way_are_coded_as_two_channels():
-    from bandelets.normalmaps import ONE_WAY
+    from bandelets.codec.normalmaps import ONE_WAY
 
     for angle, channels in ((0.9 * ONE_WAY, 2), (1.1 * ONE_WAY, 3)):
         tilt = np.broadcast_to(np.linspace(0.0, angle, 32), (32, 32))  # turning about y, left to right

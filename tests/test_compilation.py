@@ -1,11 +1,11 @@
-"""The first run says that it compiles (bandelets.compilation), in a process of its own."""
+"""The first run says that it compiles (bandelets.runtime.compilation), in a process of its own."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 
-from bandelets import compilation
+from bandelets.runtime import compilation
 
 
 def _run(code: str) -> subprocess.CompletedProcess:
@@ -42,7 +42,7 @@ def test_quiet_commands_say_nothing():
 
 
 def test_kernels_cached_from_other_sources_are_deleted(tmp_path):
-    from bandelets.kernelcache import STAMP, purge_stale_kernels
+    from bandelets.runtime.kernelcache import STAMP, purge_stale_kernels
 
     package = tmp_path / "site-packages" / "pkg"
     (package / "__pycache__").mkdir(parents=True)

@@ -6,7 +6,7 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.cli import main
+from bandelets.apps.cli import main
 from bandelets.metrics import psnr
 from bandelets.samples import crease_normal_map
 

@@ -9,11 +9,12 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets import directional, entropy, lifting
-from bandelets.bitstream import FormatError, pack, unpack
+from bandelets.coding import entropy
+from bandelets.format.header import FormatError, pack, unpack
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
-from bandelets.wavelets import wavedec
+from bandelets.transform import directional, lifting
+from bandelets.transform.wavelets import wavedec
 
 _TABLES = (directional.OFFSETS, directional.WEIGHTS, directional.SCALES)
 

@@ -1,12 +1,12 @@
-"""The adaptive binary range coder (bandelets.entropy)."""
+"""The adaptive binary range coder (bandelets.coding.entropy)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bandelets import entropy
-from bandelets.entropy import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
+from bandelets.coding import entropy
+from bandelets.coding.entropy import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
 
 
 def _encode_flags(bits, ctxs, n_contexts):
@@ -168,7 +168,7 @@ def test_encoder_buffer_grows(rng):
 def test_rarely_used_contexts_learn_from_their_family():
     # 15 wavelet classes, each coding 6 zeros (no neighbours, no guide): each class's own
     # significance context sees 6 decisions, their common coarse context all 90.
-    from bandelets.layout import Segment
+    from bandelets.coding.order import Segment
 
     n = 90
     plan = Segment(np.arange(n), 1 + np.arange(n) % 15, np.full((n, 6), -1))
@@ -190,8 +190,8 @@ def test_rarely_used_contexts_learn_from_their_family():
 def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
     # Every path of the coefficient coder: zeros, +-1, +-2, large magnitudes (Elias-gamma), the
     # approximation's prediction, neighbours, parents and a guide channel.
-    from bandelets.layout import approximation_plan, subband_plan
-    from bandelets.quadtree import flat_quadtree
+    from bandelets.coding.order import approximation_plan, subband_plan
+    from bandelets.transform.quadtree import flat_quadtree
 
     shape, levels = (32, 32), 2
     size = shape[0] * shape[1]

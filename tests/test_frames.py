@@ -1,4 +1,4 @@
-"""Local frames of geometry images (bandelets.frames) and their use by the codec."""
+"""Local frames of geometry images (bandelets.transform.frames) and their use by the codec."""
 
 from __future__ import annotations
 
@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import frames, metrics
-from bandelets.bitstream import NORMAL_MAP_WEIGHT, unpack
-from bandelets.encoder import encode_with_stats
-from bandelets.options import EncodeOptions
+from bandelets import metrics
+from bandelets.codec.encoder import encode_with_stats
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import NORMAL_MAP_WEIGHT, unpack
 from bandelets.surfaces import octahedral
-from bandelets.wavelets import wavedec
+from bandelets.transform import frames
+from bandelets.transform.wavelets import wavedec
 
 
 def _bumpy_sphere(side: int) -> np.ndarray:
@@ -210,7 +211,7 @@ def test_bad_geometry_options_are_refused(array, options, words):
 def test_memory_estimate_covers_the_decoding_with_frames():
     import tracemalloc
 
-    from bandelets.memory import decoder_memory
+    from bandelets.format.limits import decoder_memory
 
     data = bandelets.encode(
         _bumpy_sphere(128), bpp=2.0, kind="geometry-image", frames=True, transform="wavelet"

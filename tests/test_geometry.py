@@ -1,11 +1,11 @@
-"""Directions and reorderings of a square, and the zig-zag order (bandelets.geometry)."""
+"""Directions and reorderings of a square, and the zig-zag order (bandelets.transform.geometry)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bandelets.geometry import critical_angles, directions, zigzag
+from bandelets.transform.geometry import critical_angles, directions, zigzag
 
 
 @pytest.mark.parametrize("width", [4, 8])

@@ -22,8 +22,8 @@ import pytest
 from headerints import leb128, read_integers
 
 import bandelets
-from bandelets import tiling
-from bandelets.bitstream import (
+from bandelets.codec import tiles as tiling
+from bandelets.format.header import (
     MAX_MEMORY,
     FormatError,
     Header,
@@ -32,7 +32,7 @@ from bandelets.bitstream import (
     streams_offset,
     unpack,
 )
-from bandelets.memory import decoder_memory, encoder_memory
+from bandelets.format.limits import decoder_memory, encoder_memory
 from bandelets.samples import crease_normal_map
 
 DATA = Path(__file__).resolve().parent / "data"

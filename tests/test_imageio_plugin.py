@@ -1,4 +1,4 @@
-"""The imageio v3 plugin (bandelets.imageio_plugin)."""
+"""The imageio v3 plugin (bandelets.io.imageio_plugin)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 iio = pytest.importorskip("imageio.v3")
 
 import bandelets  # noqa: E402
-import bandelets.imageio_plugin  # noqa: E402, F401  (registers .bdl)
+import bandelets.io.imageio_plugin  # noqa: E402, F401  (registers .bdl)
 from bandelets.metrics import angular_error, psnr  # noqa: E402
 from bandelets.samples import crease_normal_map  # noqa: E402
 

@@ -9,11 +9,10 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets.bandeletize import bandeletize, transform_rows
-from bandelets.bitstream import Header
-from bandelets.coding import code_image, new_coders
-from bandelets.geometry import directions
-from bandelets.lagrangian import (
+from bandelets.coding.image import code_image, new_coders
+from bandelets.format.header import Header
+from bandelets.format.quantizer import dequantize, quantize
+from bandelets.search.lagrangian import (
     LAMBDA,
     RATE_MODEL,
     best_directions,
@@ -21,9 +20,10 @@ from bandelets.lagrangian import (
     geometry_bits,
     square_features,
 )
-from bandelets.quantize import dequantize, quantize
-from bandelets.transform import apply_trees, best_trees, wavelet_coefficients
-from bandelets.wavelets import max_levels, subband_slices
+from bandelets.transform.bandeletize import bandeletize, transform_rows
+from bandelets.transform.bandelets import apply_trees, best_trees, wavelet_coefficients
+from bandelets.transform.geometry import directions
+from bandelets.transform.wavelets import max_levels, subband_slices
 
 # ---------------------------------------------------------------------------------------------
 # The pieces of the Lagrangian.

@@ -1,4 +1,4 @@
-"""The encoder's choice of the count of wavelet levels (bandelets.levelchoice, wavelets.coarse_blocks)."""
+"""The encoder's choice of the count of wavelet levels (bandelets.search.levelchoice, wavelets.coarse_blocks)."""
 
 from __future__ import annotations
 
@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import encoder, levelchoice, metrics, normalmaps
-from bandelets.bitstream import unpack
-from bandelets.files import from_samples
-from bandelets.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels, levels_to_try
+from bandelets import metrics
+from bandelets.codec import encoder, normalmaps
+from bandelets.format.header import unpack
+from bandelets.io.files import from_samples
 from bandelets.samples import bevel_normal_map, bump_normal_map
-from bandelets.transform import wavelet_coefficients
-from bandelets.wavelets import coarse_blocks, max_levels, wavedec
+from bandelets.search import levelchoice
+from bandelets.search.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels, levels_to_try
+from bandelets.transform.bandelets import wavelet_coefficients
+from bandelets.transform.wavelets import coarse_blocks, max_levels, wavedec
 
 
 @pytest.mark.parametrize("first", [1, 2, 5])

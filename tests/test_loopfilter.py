@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import loopfilter
-from bandelets.bitstream import (
+from bandelets.codec.decoder import decode_parsed
+from bandelets.codec.encoder import encode_with_stats
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import (
     MAX_FILTER_CLIP,
     MAX_FILTER_SHIFT,
     MAX_FILTER_WIDTH,
@@ -25,12 +27,10 @@ from bandelets.bitstream import (
     pack,
     unpack,
 )
-from bandelets.decoder import decode_parsed
-from bandelets.encoder import encode_with_stats
-from bandelets.lagrangian import LAMBDA
 from bandelets.metrics import psnr
-from bandelets.options import EncodeOptions
+from bandelets.restore import loopfilter
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.search.lagrangian import LAMBDA
 
 
 def _header(channels: int = 2, loop_filter: LoopFilter | None = None) -> Header:

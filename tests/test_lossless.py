@@ -1,4 +1,4 @@
-"""Lossless files (bandelets.lossless, format version 12): exact round trips, the default's choice
+"""Lossless files (bandelets.coding.lossless, format version 12): exact round trips, the default's choice
 under a rate target, and the errors."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import lossless
-from bandelets.bitstream import FormatError, pack, unpack
-from bandelets.cli import main
-from bandelets.files import from_samples, to_samples
+from bandelets.apps.cli import main
+from bandelets.coding import lossless
+from bandelets.format.header import FormatError, pack, unpack
+from bandelets.io.files import from_samples, to_samples
 from bandelets.samples import crease_normal_map
 
 

@@ -158,8 +158,8 @@ def test_unit_normals_of_a_large_map_in_two_threads_are_the_same_numbers(monkeyp
 
 
 def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
+    from bandelets.codec.normalmaps import equidistant
     from bandelets.metrics import unit_normals
-    from bandelets.normalmaps import equidistant
 
     normals = unit_vectors(rng.normal(size=(9, 11, 3)))  # every way, some below the horizon
     normals[0, 0] = [0.0, 0.0, 1.0]  # the pole, where x, y / |x, y| is undefined
@@ -175,7 +175,8 @@ def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
 def test_the_encoders_measure_sums_two_halves_of_a_large_map_as_one(monkeypatch):
     """Above ``THREADED_PIXELS`` the measure of a normal map sums the halves of its rows in two
     threads: the PSNR of the whole, as in one pass (to the last bits of the sum's order)."""
-    from bandelets import metrics, normalmaps
+    from bandelets import metrics
+    from bandelets.codec import normalmaps
 
     rng = np.random.default_rng(3)
     reference = unit_vectors(rng.normal(size=(300, 280, 3)) + [0.0, 0.0, 4.0])

@@ -9,8 +9,8 @@ import pytest
 
 import bandelets
 from bandelets import metrics
-from bandelets.bitstream import pack, unpack
-from bandelets.normalmaps import octahedral
+from bandelets.codec.normalmaps import octahedral
+from bandelets.format.header import pack, unpack
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
 from bandelets.surfaces.octahedral import grid, square_to_sphere
 

@@ -1,12 +1,12 @@
-"""The best quadtree of a subband (bandelets.quadtree)."""
+"""The best quadtree of a subband (bandelets.transform.quadtree)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bandelets import quadtree
-from bandelets.quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
+from bandelets.transform import quadtree
+from bandelets.transform.quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
 
 
 def _two_level_costs():

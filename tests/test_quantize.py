@@ -1,12 +1,12 @@
-"""The paper's quantizer Q_T (bandelets.quantize)."""
+"""The paper's quantizer Q_T (bandelets.format.quantizer)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bandelets import quantize as quantize_module
-from bandelets.quantize import bin_index, dequantize, quantization_error, quantize
+from bandelets.format import quantizer as quantize_module
+from bandelets.format.quantizer import bin_index, dequantize, quantization_error, quantize
 
 #: Where a bin is reconstructed, ``(q + R) T``: the paper's Q_T has R = 1/2 (the middle of the
 #: bin). The module may move it (a reconstruction biased towards zero suits Laplacian

@@ -8,9 +8,9 @@ from types import SimpleNamespace
 import numpy as np
 
 import bandelets
-from bandelets import ratecontrol
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.search import ratecontrol
 
 
 def _magnitudes(rng):

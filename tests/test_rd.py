@@ -1,4 +1,4 @@
-"""Rate-distortion runs (bandelets.rd, ``bandelets rd`` and ``bandelets show``)."""
+"""Rate-distortion runs (bandelets.apps.rd, ``bandelets rd`` and ``bandelets show``)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import imagecodecs
 import numpy as np
 import pytest
 
-from bandelets import anchors, rd
-from bandelets.cli import main
+from bandelets.apps import anchors, rd
+from bandelets.apps.cli import main
 from bandelets.metrics import bits_per_pixel
 
 

@@ -14,7 +14,7 @@ trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("pymeshlab")
 
 from bandelets import rd  # noqa: E402
-from bandelets.cli import main  # noqa: E402
+from bandelets.apps.cli import main  # noqa: E402
 
 
 def _run(capsys, *argv) -> tuple[int, str, str]:

@@ -15,12 +15,14 @@ from conftest import straight_edge
 from numba import njit
 
 import bandelets
-from bandelets import lagrangian, layout, quantize
-from bandelets.bandeletize import bandeletize, debandeletize, debandeletize_bins
-from bandelets.bitstream import TRANSFORMS_1D
-from bandelets.coding import code_image, new_coders
-from bandelets.transform import best_trees, wavelet_coefficients
-from bandelets.wavelets import max_levels, subband_slices
+from bandelets.coding import order as layout
+from bandelets.coding.image import code_image, new_coders
+from bandelets.format import quantizer as quantize
+from bandelets.format.header import TRANSFORMS_1D
+from bandelets.search import lagrangian
+from bandelets.transform.bandeletize import bandeletize, debandeletize, debandeletize_bins
+from bandelets.transform.bandelets import best_trees, wavelet_coefficients
+from bandelets.transform.wavelets import max_levels, subband_slices
 
 
 @njit(cache=True)
@@ -131,7 +133,7 @@ def test_files_match_the_reference(make, options, monkeypatch):
 
 
 def test_decoded_trees_cache_the_leaves_they_would_find():
-    from bandelets.bitstream import unpack
+    from bandelets.format.header import unpack
     from bandelets.samples import crease_normal_map
 
     # Without the directional lifting, which leaves the bandelet search nothing to take here.

@@ -18,11 +18,13 @@ import pytest
 import trimesh
 
 import bandelets
-from bandelets import cli, compilation, files
-from bandelets.bitstream import MAX_THRESHOLD, MAX_WORK, MIN_THRESHOLD, FormatError, Header, pack, unpack
-from bandelets.files import read_array
-from bandelets.memory import restoration_work
-from bandelets.restoration import penalty_gradient
+from bandelets.apps import cli
+from bandelets.format.header import MAX_THRESHOLD, MAX_WORK, MIN_THRESHOLD, FormatError, Header, pack, unpack
+from bandelets.format.limits import restoration_work
+from bandelets.io import files
+from bandelets.io.files import read_array
+from bandelets.restore.restoration import penalty_gradient
+from bandelets.runtime import compilation
 from bandelets.samples import crease_normal_map
 from bandelets.surfaces.checks import MEMORY_PER_FACE
 from bandelets.surfaces.codec import (
@@ -210,7 +212,7 @@ def test_a_huge_png_is_refused_from_its_header(tmp_path):
 
 def test_a_huge_npy_is_refused_from_its_header(tmp_path):
     path = tmp_path / "huge.npy"
-    # 256 MB announced (sparse): above the memory of even a tiled encode (bandelets.tiling).
+    # 256 MB announced (sparse): above the memory of even a tiled encode (bandelets.codec.tiles).
     np.lib.format.open_memmap(path, mode="w+", dtype=np.uint8, shape=(16000, 16000)).flush()
     tracemalloc.start()
     with pytest.raises(ValueError, match="huge.npy: encoding a 16000 x 16000 x 1 image needs about"):
@@ -398,7 +400,7 @@ def test_a_huge_tiff_is_refused_from_its_header(tmp_path):
 
 @pytest.mark.parametrize("suffix", [".png", ".npy", ".exr", ".tif"])
 def test_image_shape_reads_the_header_of_every_format(tmp_path, suffix):
-    from bandelets.files import image_shape, write_array
+    from bandelets.io.files import image_shape, write_array
 
     path = tmp_path / f"map{suffix}"
     write_array(path, np.zeros((20, 30, 3)), "normal-map", 16)

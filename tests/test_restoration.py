@@ -1,4 +1,4 @@
-"""Decoder-side restoration (bandelets.restoration) and its place in the codec."""
+"""Decoder-side restoration (bandelets.restore.restoration) and its place in the codec."""
 
 from __future__ import annotations
 
@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import decoder, encoder, metrics, restoration
-from bandelets.bitstream import pack, unpack
-from bandelets.options import EncodeOptions
-from bandelets.quantize import bin_bounds, dequantize, quantize
-from bandelets.wavelets import wavedec, waverec
+from bandelets import metrics
+from bandelets.codec import decoder, encoder
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import pack, unpack
+from bandelets.format.quantizer import bin_bounds, dequantize, quantize
+from bandelets.restore import restoration
+from bandelets.transform.wavelets import wavedec, waverec
 
 
 def test_bins_hold_the_values_they_came_from(rng):

@@ -11,10 +11,13 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import encoder, levelchoice, metrics, ratecontrol, riesz
-from bandelets.bitstream import FormatError, pack, unpack
-from bandelets.files import from_samples
+from bandelets import metrics
+from bandelets.codec import encoder
+from bandelets.format.header import FormatError, pack, unpack
+from bandelets.io.files import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
+from bandelets.search import levelchoice, ratecontrol
+from bandelets.transform import riesz
 
 
 def png_samples(path) -> np.ndarray:
@@ -135,7 +138,7 @@ def test_a_rate_target_tries_the_pair_where_it_nearly_pays_and_keeps_the_better(
 
 
 def test_the_command_line_asks_for_the_pair_and_info_says_so(tmp_path, capsys):
-    from bandelets.cli import main
+    from bandelets.apps.cli import main
 
     npy, bdl = tmp_path / "bumps.npy", tmp_path / "bumps.bdl"
     np.save(npy, height_normals(32))

@@ -1,4 +1,4 @@
-"""Contexts of the 1D bandelet coefficients read around their square (bandelets.squarecontexts)."""
+"""Contexts of the 1D bandelet coefficients read around their square (bandelets.coding.squarecontexts)."""
 
 from __future__ import annotations
 
@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import coding
-from bandelets.bandeletize import transform_rows
-from bandelets.bitstream import unpack
-from bandelets.entropy import N_HINTS, SQUARE_START
-from bandelets.geometry import directions
-from bandelets.layout import subband_box, subband_plan
-from bandelets.quadtree import flat_quadtree, root_width
-from bandelets.quantize import RECONSTRUCTION
+from bandelets.coding import image as coding
+from bandelets.coding.entropy import N_HINTS, SQUARE_START
+from bandelets.coding.order import subband_box, subband_plan
+from bandelets.coding.squarecontexts import square_hints
+from bandelets.format.header import unpack
+from bandelets.format.quantizer import RECONSTRUCTION
 from bandelets.samples import crease_normal_map
-from bandelets.squarecontexts import square_hints
-from bandelets.wavelets import subband_slices
+from bandelets.transform.bandeletize import transform_rows
+from bandelets.transform.geometry import directions
+from bandelets.transform.quadtree import flat_quadtree, root_width
+from bandelets.transform.wavelets import subband_slices
 
 SHAPE, LEVELS = (128, 128), 3
 

@@ -11,8 +11,8 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("pymeshlab")
 
-from bandelets.bitstream import unpack  # noqa: E402
-from bandelets.cli import main  # noqa: E402
+from bandelets.apps.cli import main  # noqa: E402
+from bandelets.format.header import unpack  # noqa: E402
 from bandelets.surfaces import octahedral  # noqa: E402
 from bandelets.surfaces.checks import check_genus0  # noqa: E402
 from bandelets.surfaces.codec import (  # noqa: E402

@@ -1,4 +1,4 @@
-"""Tiled files (format version 9 on, :mod:`bandelets.tiling`): small tiles keep these tests fast."""
+"""Tiled files (format version 9 on, :mod:`bandelets.codec.tiles`): small tiles keep these tests fast."""
 
 from __future__ import annotations
 
@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 import bandelets
-from bandelets import cli, tiling
-from bandelets.bitstream import FormatError, unpack
-from bandelets.encoder import encode_with_stats
-from bandelets.memory import check_encodable, encoder_memory, tile_side
+from bandelets.apps import cli
+from bandelets.codec import tiles as tiling
+from bandelets.codec.encoder import encode_with_stats
+from bandelets.codec.options import EncodeOptions
+from bandelets.format.header import FormatError, unpack
+from bandelets.format.limits import check_encodable, encoder_memory, tile_side
 from bandelets.metrics import angular_error, psnr
-from bandelets.options import EncodeOptions
 from bandelets.samples import crease_normal_map
 
 
@@ -158,7 +159,7 @@ def test_the_last_pass_restores_the_tiles_already_coded_to_the_same_file(normals
 def test_the_restoration_of_all_tiles_together_stays_within_max_work(normals):
     # Each tile restores within its share of max_work (by its pixels), and the decoder refuses
     # a file whose tiles together ask for more: not max_work once per tile.
-    from bandelets.memory import restoration_work
+    from bandelets.format.limits import restoration_work
 
     budget = 12 * (32 * 32 * 2 + 2**16) * 9  # about 12 iterations of every one of the 9 tiles
     data = bandelets.encode(normals, threshold=0.003, kind="normal-map", tile=32, max_work=budget)

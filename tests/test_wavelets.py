@@ -1,4 +1,4 @@
-"""The normalised 2D wavelet transform (bandelets.wavelets)."""
+"""The normalised 2D wavelet transform (bandelets.transform.wavelets)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import pywt
 import reference
 
-from bandelets.wavelets import max_levels, padded_shape, subband_slices, wavedec, waverec
+from bandelets.transform.wavelets import max_levels, padded_shape, subband_slices, wavedec, waverec
 
 # Non-square; the coarsest subband keeps >= 8 samples a side (as the codec does), so that
 # PyWavelets does not warn about boundary effects with db4.
@@ -42,7 +42,7 @@ def _subbands(shape, levels):
 @pytest.mark.parametrize("levels", [1, 3])
 def test_cdf97_synthesis_functions_have_unit_norm(levels):
     """Unit norm, except the finest level's: 1 / FINEST_WEIGHT (its coefficients weighted more)."""
-    from bandelets.wavelets import FINEST_WEIGHT
+    from bandelets.transform.wavelets import FINEST_WEIGHT
 
     shape = (128, 160)
     for name, (rows, cols) in _subbands(shape, levels):
@@ -61,7 +61,7 @@ def test_cdf97_is_not_orthogonal_but_normalised():
     """Sanity check of the previous test: the raw 9/7 synthesis functions are not unit-norm,
     so the normalisation is doing something (a unit impulse in the raw transform of a
     detail subband would not give norm 1)."""
-    from bandelets.wavelets import subband_norms
+    from bandelets.transform.wavelets import subband_norms
 
     norms = np.array(subband_norms("cdf97", 2))
     assert np.all(np.abs(norms - 1.0) > 1e-3)

@@ -14,7 +14,7 @@ quantization, context-modelled arithmetic coding and a .bdl file.
 from importlib import import_module
 from typing import TYPE_CHECKING
 
-from . import kernelcache as _kernelcache
+from .runtime import kernelcache as _kernelcache
 
 __version__ = "0.1.0"
 
@@ -23,22 +23,22 @@ _kernelcache.purge_stale_kernels()
 
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
 _HOME = {
-    "Bandelets": "transform",
-    "FormatError": "bitstream",
-    "batch": "batching",
-    "decode": "decoder",
-    "encode": "encoder",
-    "forward": "transform",
-    "inverse": "transform",
+    "Bandelets": "transform.bandelets",
+    "FormatError": "format.header",
+    "batch": "apps.batch",
+    "decode": "codec.decoder",
+    "encode": "codec.encoder",
+    "forward": "transform.bandelets",
+    "inverse": "transform.bandelets",
 }
 __all__ = ["Bandelets", "FormatError", "batch", "decode", "encode", "forward", "inverse"]
 
 if TYPE_CHECKING:  # what the lazy loading below gives, for type checkers and IDEs
-    from .batching import batch
-    from .bitstream import FormatError
-    from .decoder import decode
-    from .encoder import encode
-    from .transform import Bandelets, forward, inverse
+    from .apps.batch import batch
+    from .codec.decoder import decode
+    from .codec.encoder import encode
+    from .format.header import FormatError
+    from .transform.bandelets import Bandelets, forward, inverse
 
 
 def __getattr__(name: str):

@@ -12,8 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .files import as_read
-from .restoration import CORES, workers
+from .io.files import as_read
+from .restore.restoration import CORES, workers
 
 __all__ = [
     "AngularError",
@@ -59,7 +59,7 @@ def unit_normals(
     ``height`` rows and ``width`` columns of ``channels``, shape (C, H, W), in one compiled pass
     with the same numbers (what a decoder returns, ten times faster than the two numpy passes).
     With ``equidistant``, two channels are azimuthal equidistant coordinates
-    (:func:`bandelets.normalmaps.equidistant`), not ``x, y``.
+    (:func:`bandelets.codec.normalmaps.equidistant`), not ``x, y``.
 
     Returns
     -------
@@ -189,7 +189,7 @@ def psnr(reference: np.ndarray, decoded: np.ndarray, kind: str = "image") -> flo
     paper measures; a map of shape (H, W, 2) holds ``x, y`` (:func:`with_z`). The decoder already
     renormalises, but a decoded map written in 8 or 16-bit samples and read back is no longer of
     unit length: a renderer renormalises it, and so do the anchors' decoded files
-    (:func:`bandelets.anchors.decode`).
+    (:func:`bandelets.apps.anchors.decode`).
     """
     return psnr_against(reference, kind)(decoded)
 
@@ -229,7 +229,7 @@ def psnr_of_channels(
     one pass, so the value may differ from :func:`psnr` of the decoded array in the last digits.
     A reference of two channels is a normal map of ``x, y`` (:func:`with_z`). With ``depth`` (8 or
     16) the image is measured as written in samples of that depth
-    (:func:`bandelets.files.as_read`): what the user gets.
+    (:func:`bandelets.io.files.as_read`): what the user gets.
     """
     reference = np.asarray(reference, np.float64)
     if kind != "normal-map":
@@ -260,7 +260,7 @@ def psnr_of_channels(
 @njit(cache=True, nogil=True)
 def _as_sample(v, top):
     """A component in [-1, 1] as a sample of ``top + 1`` levels reads back
-    (:func:`bandelets.files.as_read`); unchanged for ``top = 0`` (floats)."""
+    (:func:`bandelets.io.files.as_read`); unchanged for ``top = 0`` (floats)."""
     if top == 0:
         return v
     return np.rint(min(max((v + 1.0) / 2.0, 0.0), 1.0) * top) / top * 2.0 - 1.0

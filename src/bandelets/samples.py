@@ -207,7 +207,7 @@ def bevel_normal_map(
     hexagon), plus on the faces a fine bumpy texture (Gaussian noise smoothed over 1.2 pixels,
     standard deviation ``texture``, fading in over the bevel). Normals come from the height's
     centred differences, each pixel averages ``supersampling**2`` of them (renormalised), and
-    they are rounded to 8 bits as a PNG holds them (:func:`bandelets.files.to_samples`): the
+    they are rounded to 8 bits as a PNG holds them (:func:`bandelets.io.files.to_samples`): the
     background, about 64 % of the pixels, is exactly ``(128, 128, 255)``. Lengths are fractions
     of the side, so the map looks the same at every size. About 0.5 s at 512 (the first call
     also imports matplotlib).
@@ -229,11 +229,11 @@ def bevel_normal_map(
     -------
     ndarray, shape (size, size, 3), uint8
         ``(n + 1) / 2 * 255`` rounded, as a PNG normal map stores the unit normals ``n``
-        (:func:`bandelets.files.from_samples` gives them back).
+        (:func:`bandelets.io.files.from_samples` gives them back).
     """
     from scipy import ndimage
 
-    from .files import to_samples
+    from .io.files import to_samples
 
     if size < 16:
         raise ValueError(f"the size must be at least 16, got {size}")

@@ -8,7 +8,7 @@ are the same on every platform. ``golden.json`` holds, for every file, the SHA-2
 file and of its decoded array rounded to 6 decimals (:func:`decoded_sha256`).
 
 Rule: a change of the format must keep decoding these files to the same checksums, or bump
-``bandelets.bitstream.FORMAT_VERSION`` (and then regenerate them). Do not regenerate them to
+``bandelets.format.header.FORMAT_VERSION`` (and then regenerate them). Do not regenerate them to
 make a failing decode test pass.
 """
 
@@ -164,7 +164,7 @@ def build() -> dict:
 
 
 def main(argv: list[str]) -> int:
-    from bandelets.bitstream import FORMAT_VERSION
+    from bandelets.format.header import FORMAT_VERSION
 
     entries = build()
     table = {

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bitstream import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, unpack
-from ..decoder import decode_parsed
-from ..encoder import encode_with_stats
-from ..options import EncodeOptions
+from ..codec.decoder import decode_parsed
+from ..codec.encoder import encode_with_stats
+from ..codec.options import EncodeOptions
+from ..format.header import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, unpack
 from . import checks, geometry_image, sphere
 
 __all__ = [
@@ -254,12 +254,12 @@ def encode_mesh(
         Local frames, weight of their normal component and wavelet boundary extension
         (:func:`bandelets.encode`); the defaults are the best measured (benchmarks/rd_meshes.py).
     restore : bool
-        Let the decoder restore the image (:mod:`bandelets.restoration`). Off by default: the
+        Let the decoder restore the image (:mod:`bandelets.restore.restoration`). Off by default: the
         encoder picks the iteration count that lowers the L2 error of the positions, which
         helps the Hausdorff PSNR of CAD meshes (fandisk +1.3 dB BD, up to +2.2 dB at 8 b/v) but
         slides the points of scanned ones along their surface (bunny -0.2 dB): variants
         ``default,restored`` of benchmarks/rd_meshes.py. No loop filter
-        (:mod:`bandelets.loopfilter`) either way: not measured on the Hausdorff PSNR yet.
+        (:mod:`bandelets.restore.loopfilter`) either way: not measured on the Hausdorff PSNR yet.
     image : ndarray of float, shape (n, n, 3), optional
         The geometry image to code, if already made (:func:`make_geometry_image`); it fixes
         the size.

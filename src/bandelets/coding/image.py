@@ -1,0 +1,128 @@
+"""Coding of a whole image's quadtrees and bins into the three streams of a .bdl file, and back.
+
+One function, :func:`code_image`, walks the image in the order of the file for both the
+encoder and the decoder, so the two cannot disagree on it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..format.header import Header
+from ..transform import directional
+from ..transform.bandeletize import debandeletize_bins
+from ..transform.quadtree import flat_quadtree, root_width
+from ..transform.wavelets import padded_shape, subband_slices
+from . import approximation, entropy
+from .order import approximation_plan, subband_plan
+from .squarecontexts import square_hints
+from .trees import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
+
+__all__ = ["code_image", "code_lifting", "new_coders"]
+
+
+def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
+    """Activity of the coarser subband under squares of detail subband ``index``.
+
+    Returns ``(rows, cols, widths) -> bucket``: 0 if every already coded coefficient (all
+    channels) of the parent region is 0, 1 if their magnitudes sum to at most 2, 2 above;
+    3 for the coarsest detail level, whose parent is the approximation.
+    """
+    if index < 3:
+        return lambda rows, cols, widths: np.full(np.broadcast(rows, cols, widths).shape, 3)
+    where = subband_slices(shape, levels)[index - 3][2]
+    magnitude = sum(np.abs(k.reshape(shape)[where]) for k in known)
+    table = np.zeros((magnitude.shape[0] + 1, magnitude.shape[1] + 1), np.int64)
+    table[1:, 1:] = magnitude.cumsum(0).cumsum(1)
+
+    def bucket(rows, cols, widths):
+        rows, cols, widths = np.broadcast_arrays(rows, cols, widths)
+        r0, c0 = rows // 2, cols // 2
+        r1 = np.minimum((rows + widths) // 2, magnitude.shape[0])
+        c1 = np.minimum((cols + widths) // 2, magnitude.shape[1])
+        total = table[r1, c1] - table[r0, c1] - table[r1, c0] + table[r0, c0]
+        return np.where(total == 0, 0, np.where(total <= 2, 1, 2))
+
+    return bucket
+
+
+def code_image(
+    coders: tuple,
+    header: Header,
+    trees: list | None = None,
+    quantized: list[np.ndarray] | None = None,
+    estimate: bool = False,
+) -> tuple[list, list, list]:
+    """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
+
+    Order: the approximation of every channel, then subband by subband (coarse to fine,
+    H, V, D): its quadtree and directions (:mod:`bandelets.coding.trees`), then for each
+    channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.coding.order`).
+    The guide of a channel (a context, see :func:`bandelets.coding.entropy.code_coefficients`) is
+    what the previous channel coded, bandelet coefficients included. After a channel's
+    bandelet squares, the contexts are given the wavelet coefficients those
+    squares decode to.
+
+    ``estimate``: the approximation is coded with version 17's model
+    (:func:`bandelets.coding.entropy.code_coefficients`), not the file's (:mod:`bandelets.coding.approximation`),
+    for the level choice's prices (:mod:`bandelets.search.levelchoice`): no file is made that way.
+
+    Returns
+    -------
+    trees : list of Quadtree
+    quantized : list of ndarray of int32, shape (H * W,), per channel
+    spent : list of ndarray of float64, shape (H * W,): ideal code length of every coefficient
+    """
+    splits, dirs, coeffs = coders
+    shape = padded_shape((header.height, header.width), header.levels)
+    size = shape[0] * shape[1]
+    decoding = quantized is None
+    if decoding:
+        quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
+    known = [np.zeros(size, np.int64) for _ in quantized]
+    spent = [np.zeros(size) for _ in quantized]
+    coarse = approximation_plan(shape, header.levels)
+    guides = [np.zeros(0, np.int32)] + quantized[:-1]
+    for c, q in enumerate(quantized):
+        code = entropy.code_coefficients if estimate else approximation.code_approximation
+        code(coeffs, q, coarse, known[c], guides[c], spent[c])
+    out = []
+    for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
+        band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
+        if header.transform == "bandelet":
+            tree = code_tree(
+                splits,
+                dirs,
+                None if decoding else trees[index],
+                band,
+                reference_of(out, index, orientation),
+                _activity(known, shape, header.levels, index),
+            )
+        else:
+            tree = flat_quadtree(band, root_width(band))
+        out.append(tree)
+        squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        for c, q in enumerate(quantized):
+            if squares.order.size:
+                hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
+                entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c], hints)
+                view = known[c].reshape(shape)[where]
+                debandeletize_bins(view, tree, header.threshold, header.transform_1d)
+            entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
+    return out, quantized, spent
+
+
+def code_lifting(coder: entropy.Coder, header: Header, lifting: list | None = None) -> list | None:
+    """Code (``lifting`` given) or decode the directions of the levels lifted along directions
+    (:func:`bandelets.transform.directional.code_fields`), which end the directions stream, after
+    :func:`code_image`; None for a file without them."""
+    if not header.lifting:
+        return None
+    shape = padded_shape((header.height, header.width), header.levels)
+    return directional.code_fields(coder, lifting, shape, header.lifting, N_DIRECTION_CONTEXTS)
+
+
+def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
+    """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directional.N_CONTEXTS, approximation.N_CONTEXTS)
+    return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
