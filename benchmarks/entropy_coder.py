@@ -4,7 +4,7 @@ Codes the same 1,000,000 context-modelled binary decisions (a skewed source, 64 
 contexts) three ways and prints the time of each:
 
 * this package's range coder, compiled with numba together with its adaptation
-  (``bandelets.coding.entropy.code_flags``);
+  (``bandelets.coding.rangecoder.code_flags``);
 * ``constriction``'s range coder, called from Python once per decision with an adaptive
   Bernoulli model updated in Python (what context modelling that depends on just-decoded
   values forces on a library coder);
@@ -30,13 +30,13 @@ def main() -> None:
     rng = np.random.default_rng(0)
     contexts = rng.integers(0, 64, N)
     bits = (rng.random(N) < 0.02 + 0.9 * (contexts / 64) ** 4).astype(np.int64)
-    entropy.code_flags(entropy.Coder(64), bits[:1000], contexts[:1000])  # compile
+    rangecoder.code_flags(rangecoder.Coder(64), bits[:1000], contexts[:1000])  # compile
     start = time.perf_counter()
-    coder = entropy.Coder(64)
-    entropy.code_flags(coder, bits, contexts)
+    coder = rangecoder.Coder(64)
+    rangecoder.code_flags(coder, bits, contexts)
     ours = time.perf_counter() - start
     size = len(coder.finish())
-    print(f"bandelets.coding.entropy (numba)      {ours * 1e9 / N:8.1f} ns/decision  {size} bytes")
+    print(f"bandelets.coding.rangecoder (numba)      {ours * 1e9 / N:8.1f} ns/decision  {size} bytes")
     try:
         import constriction
     except ImportError:

@@ -7,7 +7,7 @@ import pytest
 
 from bandelets.coding import entropy
 from bandelets.coding.approximation import N_CONTEXTS, code_approximation
-from bandelets.coding.entropy import Coder, CorruptStream
+from bandelets.coding.rangecoder import Coder, CorruptStream
 from bandelets.coding.order import approximation_plan
 
 SHAPE, LEVELS = (128, 96), 2  # an approximation of 32 x 24 bins
@@ -32,12 +32,12 @@ def _code(channels, decoding_data=None, approximation=True):
     ``decoding_data``; returns the bytes or the decoded channels, and the bits spent."""
     plan = approximation_plan(SHAPE, LEVELS)
     size = SHAPE[0] * SHAPE[1]
-    n = N_CONTEXTS if approximation else entropy.coefficient_contexts()
+    n = N_CONTEXTS if approximation else coefficients.coefficient_contexts()
     coder = Coder(n, decoding_data)
     out = [np.zeros(size, np.int32) for _ in channels] if decoding_data is not None else channels
     spent = [np.zeros(size) for _ in channels]
     guides = [np.zeros(0, np.int32)] + out[:-1]
-    code = code_approximation if approximation else entropy.code_coefficients
+    code = code_approximation if approximation else coefficients.code_coefficients
     for q, guide, bits in zip(out, guides, spent, strict=True):
         code(coder, q, plan, np.zeros(size, np.int64), guide, bits)
     if decoding_data is not None:

@@ -9,7 +9,7 @@ from bandelets.runtime import compilation
 
 
 def _run(code: str) -> subprocess.CompletedProcess:
-    prelude = "import sys\nfrom numba import njit\nfrom bandelets import compilation\n"
+    prelude = "import sys\nfrom numba import njit\nfrom bandelets.runtime import compilation\n"
     return subprocess.run([sys.executable, "-c", prelude + code], capture_output=True, text=True, timeout=120)
 
 
@@ -35,8 +35,8 @@ def test_a_closed_stderr_does_not_fail_the_compilation():
 
 def test_quiet_commands_say_nothing():
     # What `bandelets encode -q` / `decode -q` call before their work (cli._working).
-    quiet = _run("from bandelets import cli\ncli._working(quiet=True)\nnjit(lambda x: x + 1)(1)\n")
-    loud = _run("from bandelets import cli\ncli._working()\nnjit(lambda x: x + 1)(1)\n")
+    quiet = _run("from bandelets.apps import cli\ncli._working(quiet=True)\nnjit(lambda x: x + 1)(1)\n")
+    loud = _run("from bandelets.apps import cli\ncli._working()\nnjit(lambda x: x + 1)(1)\n")
     assert (quiet.returncode, quiet.stderr) == (0, "")
     assert (loud.returncode, loud.stderr) == (0, f"{compilation.MESSAGE}\n")
 

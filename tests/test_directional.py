@@ -103,10 +103,10 @@ def test_directions_round_trip_through_the_coder(rng):
         rng.integers(0, len(directional.OFFSETS), s) * rng.integers(0, 2, s)
         for s in directional.field_shapes(shape, 2)
     ]
-    coder = entropy.Coder(directional.N_CONTEXTS)
+    coder = rangecoder.Coder(directional.N_CONTEXTS)
     directional.code_fields(coder, fields, shape, 2, 0)
     decoded = directional.code_fields(
-        entropy.Coder(directional.N_CONTEXTS, coder.finish()), None, shape, 2, 0
+        rangecoder.Coder(directional.N_CONTEXTS, coder.finish()), None, shape, 2, 0
     )
     for a, b in zip(fields, decoded, strict=True):
         np.testing.assert_array_equal(a, b)

@@ -1,4 +1,4 @@
-"""The adaptive binary range coder (bandelets.coding.entropy)."""
+"""The adaptive binary range coder (bandelets.coding.rangecoder)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bandelets.coding import entropy
-from bandelets.coding.entropy import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
+from bandelets.coding.rangecoder import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
 
 
 def _encode_flags(bits, ctxs, n_contexts):
@@ -98,10 +98,10 @@ def test_positive_integers_round_trip(rng):
     values[:3] = [1, 2, 1 << 20]
     bases = np.zeros(values.shape, np.int64)
     coder = Coder(64)
-    entropy.code_positive(coder, values, bases)
+    rangecoder.code_positive(coder, values, bases)
     data = coder.finish()
     decoder = Coder(64, data)
-    got = entropy.code_positive(decoder, np.ones(values.shape, np.int64), bases)
+    got = rangecoder.code_positive(decoder, np.ones(values.shape, np.int64), bases)
     decoder.check()
     np.testing.assert_array_equal(got, values)
 
@@ -174,16 +174,16 @@ def test_rarely_used_contexts_learn_from_their_family():
     plan = Segment(np.arange(n), 1 + np.arange(n) % 15, np.full((n, 6), -1))
     q = np.zeros(n, np.int32)
     spent = np.zeros(n)
-    coder = Coder(entropy.coefficient_contexts())
-    entropy.code_coefficients(coder, q, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), spent)
+    coder = Coder(coefficients.coefficient_contexts())
+    coefficients.code_coefficients(coder, q, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), spent)
     # The same decisions, each class learning alone from 1/2.
     alone = Coder(16)
     code_flags(alone, np.zeros(n, np.int64), plan.classes)
-    unbacked = alone.state[entropy._SPENT] / entropy._COST_SCALE
+    unbacked = alone.state[rangecoder._SPENT] / rangecoder._COST_SCALE
     assert spent.sum() < 0.6 * unbacked
-    decoder = Coder(entropy.coefficient_contexts(), coder.finish())
+    decoder = Coder(coefficients.coefficient_contexts(), coder.finish())
     out = np.ones(n, np.int32)
-    entropy.code_coefficients(decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n))
+    coefficients.code_coefficients(decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n))
     np.testing.assert_array_equal(out, q)
 
 
@@ -202,23 +202,23 @@ def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
     guide = rng.integers(-3, 4, size).astype(np.int32)
     q = np.where(rng.random(size) < 0.6, 0, rng.integers(-40, 41, size)).astype(np.int32)
     q[plans[0].order] = rng.integers(-2000, 2000, plans[0].order.size)
-    encoder, known, spent = Coder(entropy.coefficient_contexts()), np.zeros(size, np.int64), np.zeros(size)
+    encoder, known, spent = Coder(coefficients.coefficient_contexts()), np.zeros(size, np.int64), np.zeros(size)
     for plan in plans:
-        entropy.code_coefficients(encoder, q, plan, known, guide, spent)
+        coefficients.code_coefficients(encoder, q, plan, known, guide, spent)
     assert sum(p.order.size for p in plans) == size
     assert np.all(spent > 0)
     # The per-coefficient prices add up to the coder's own ledger.
-    assert spent.sum() == pytest.approx(encoder.state[entropy._SPENT] / entropy._COST_SCALE)
+    assert spent.sum() == pytest.approx(encoder.state[rangecoder._SPENT] / rangecoder._COST_SCALE)
     data = encoder.finish()
     assert 8 * len(data) == pytest.approx(spent.sum(), rel=0.02, abs=64)
-    decoder, out = Coder(entropy.coefficient_contexts(), data), np.zeros(size, np.int32)
+    decoder, out = Coder(coefficients.coefficient_contexts(), data), np.zeros(size, np.int32)
     known = np.zeros(size, np.int64)
     for plan in plans:
-        entropy.code_coefficients(decoder, out, plan, known, guide, np.zeros(size))
+        coefficients.code_coefficients(decoder, out, plan, known, guide, np.zeros(size))
     np.testing.assert_array_equal(out, q)
     decoder.check()
     # Cut short, the same stream is refused (the decoder counts the bytes it reads past the end).
-    decoder, known = Coder(entropy.coefficient_contexts(), data[: len(data) // 2]), np.zeros(size, np.int64)
+    decoder, known = Coder(coefficients.coefficient_contexts(), data[: len(data) // 2]), np.zeros(size, np.int64)
     with pytest.raises(CorruptStream):
         for plan in plans:
-            entropy.code_coefficients(decoder, np.zeros(size, np.int32), plan, known, guide, np.zeros(size))
+            coefficients.code_coefficients(decoder, np.zeros(size, np.int32), plan, known, guide, np.zeros(size))

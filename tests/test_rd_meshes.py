@@ -13,7 +13,7 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("pymeshlab")
 
-from bandelets import rd  # noqa: E402
+from bandelets.apps import rd  # noqa: E402
 from bandelets.apps.cli import main  # noqa: E402
 
 

@@ -12,8 +12,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .io.files import as_read
-from .restore.restoration import CORES, workers
+from .format.samples import as_read
+from .runtime.threads import CORES, workers
+from .transform.normals import THREADED_PIXELS, as_real, hemisphere, unit_length, unit_vectors, with_z
 
 __all__ = [
     "AngularError",
@@ -25,101 +26,12 @@ __all__ = [
     "psnr_against",
     "psnr_of_channels",
     "peak",
-    "unit_normals",
-    "unit_vectors",
-    "with_z",
 ]
 
 
 def bits_per_pixel(n_bytes: int, shape: tuple[int, ...]) -> float:
     """``8 * n_bytes / (H * W)`` for an image of ``shape`` (H, W[, C])."""
     return 8.0 * n_bytes / (shape[0] * shape[1])
-
-
-def unit_vectors(vectors: np.ndarray) -> np.ndarray:
-    """Vectors (last axis) scaled to unit length; zero vectors become +z."""
-    # einsum: less than half the time of np.linalg.norm on short vectors.
-    norm = np.sqrt(np.einsum("...c,...c->...", vectors, vectors))[..., None]
-    out = vectors / np.where(norm > 0, norm, 1.0)
-    out[..., 2] = np.where(norm[..., 0] > 0, out[..., 2], 1.0)
-    return out
-
-
-def with_z(xy: np.ndarray) -> np.ndarray:
-    """Normals of shape (..., 3) from their ``x, y`` (..., 2), as a BC5 decoder rebuilds them:
-    ``z = sqrt(1 - x^2 - y^2)``, 0 where ``x, y`` lie outside the unit disc."""
-    z = np.sqrt(np.maximum(1.0 - np.sum(xy * xy, axis=-1, keepdims=True), 0.0))
-    return np.concatenate([xy, z], axis=-1)
-
-
-def unit_normals(
-    channels: np.ndarray, height: int, width: int, equidistant: bool = False
-) -> np.ndarray | None:
-    """``unit_vectors(with_z(xy))`` (two channels) or ``unit_vectors(xyz)`` (three) of the first
-    ``height`` rows and ``width`` columns of ``channels``, shape (C, H, W), in one compiled pass
-    with the same numbers (what a decoder returns, ten times faster than the two numpy passes).
-    With ``equidistant``, two channels are azimuthal equidistant coordinates
-    (:func:`bandelets.codec.normalmaps.equidistant`), not ``x, y``.
-
-    Returns
-    -------
-    ndarray of float64, shape (height, width, 3), or None if a value of ``channels`` is not finite.
-    """
-    out = np.empty((height, width, 3))
-    channels = _real(channels)
-    if CORES == 1 or height * width < THREADED_PIXELS:
-        return out if _unit_normals(channels, out, equidistant, 0, height) else None
-    # The two halves of the rows in two threads (the kernel releases the GIL).
-    second = workers().submit(_unit_normals, channels, out, equidistant, height // 2, height)
-    first = _unit_normals(channels, out, equidistant, 0, height // 2)
-    return out if second.result() and first else None
-
-
-def _real(channels) -> np.ndarray:
-    """``channels`` as float32 or float64, without a copy where they are one already: the kernels
-    widen float32 restored channels to float64 value by value, the numbers decode makes."""
-    channels = np.asarray(channels)
-    return channels if channels.dtype in (np.float32, np.float64) else channels.astype(np.float64)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _hemisphere(a, b, equidistant):
-    """The normal ``x, y, z`` (not renormalised) that two coded channels stand for: ``x, y`` with
-    ``z`` rebuilt (0 outside the unit disc), or azimuthal equidistant coordinates, whose length
-    is the angle to +z (at most pi: a longer decoded one stops at -z rather than wrap around)."""
-    if not equidistant:
-        return a, b, np.sqrt(max(1.0 - (a * a + b * b), 0.0))
-    angle = np.sqrt(a * a + b * b)
-    # sin(t) / t, by its series where the division loses digits.
-    shrink = 1.0 - angle * angle / 6.0 if angle < 1e-4 else np.sin(min(angle, np.pi)) / angle
-    return a * shrink, b * shrink, np.cos(min(angle, np.pi))
-
-
-@njit(cache=True, nogil=True)
-def _unit_normals(channels, out, equidistant, first, last):
-    """The rows ``first`` to ``last`` of :func:`unit_normals` (each value of ``channels`` widened to
-    float64 exactly before any arithmetic); False if one of them is not finite."""
-    finite = True
-    for i in range(first, last):
-        for j in range(out.shape[1]):
-            x, y = np.float64(channels[0, i, j]), np.float64(channels[1, i, j])
-            if channels.shape[0] > 2:
-                z = np.float64(channels[2, i, j])
-                finite &= np.isfinite(z)
-            else:
-                x, y, z = _hemisphere(x, y, equidistant)
-            finite &= np.isfinite(x) and np.isfinite(y)
-            out[i, j, 0], out[i, j, 1], out[i, j, 2] = _unit(x, y, z)
-    return finite
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _unit(a, b, c):
-    """``a, b, c`` scaled to unit length; a zero vector becomes +z (as :func:`unit_vectors`)."""
-    norm = np.sqrt(a * a + b * b + c * c)
-    if norm > 0:
-        return a / norm, b / norm, c / norm
-    return a, b, 1.0
 
 
 class AngularError(NamedTuple):
@@ -243,7 +155,7 @@ def psnr_of_channels(
     del reference
 
     def measure(channels: np.ndarray) -> float:
-        channels = _real(channels)
+        channels = as_real(channels)
         args = (planes, channels, 2**depth - 1 if depth else 0, equidistant)
         rows = planes.shape[1]
         if CORES == 1 or planes[0].size < THREADED_PIXELS:
@@ -273,17 +185,11 @@ def _row_errors(r0, r1, r2, x, y, z, errors, top, two, equidistant):
     the compiler vectorises."""
     for j in range(errors.shape[0]):
         u, v, w = np.float64(x[j]), np.float64(y[j]), np.float64(z[j])  # float32 channels: exactly
-        a, b, c = _hemisphere(u, v, equidistant) if two else (u, v, w)
-        a, b, c = _unit(a, b, c)
+        a, b, c = hemisphere(u, v, equidistant) if two else (u, v, w)
+        a, b, c = unit_length(a, b, c)
         if top != 0:  # written in samples, read back and renormalised (psnr)
-            a, b, c = _unit(_as_sample(a, top), _as_sample(b, top), _as_sample(c, top))
+            a, b, c = unit_length(_as_sample(a, top), _as_sample(b, top), _as_sample(c, top))
         errors[j] = (r0[j] - a) ** 2 + (r1[j] - b) ** 2 + (r2[j] - c) ** 2
-
-
-#: Pixels from which the encoder's measure of a normal map (:func:`psnr_of_channels`) sums the
-#: two halves of the rows in two threads: it measures every restoration iteration, 0.13 s of a
-#: 512 x 512 encode in one thread (2-core machine). The decoder's :func:`unit_normals` too.
-THREADED_PIXELS = 256 * 256
 
 
 @njit(cache=True, nogil=True)

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from ..coding.image import code_image, new_coders
-from ..format.header import LOSSLESS, Header, unpack
+from ..format.header import LOSSLESS, Header, unpack, padded_shape
 from ..format.quantizer import dequantize
 from ..transform.bandeletize import debandeletize
 from ..transform.geometry import directions
-from ..transform.wavelets import padded_shape, subband_slices
+from ..transform.wavelets import subband_slices
 from .plots import save
 
 __all__ = ["geometry_figure", "wavelet_magnitudes"]

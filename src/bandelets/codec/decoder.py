@@ -11,18 +11,20 @@ from itertools import islice
 
 import numpy as np
 
-from .. import metrics
-from ..coding import entropy, lossless
+from ..runtime.progress import Progress
+from ..runtime.threads import CORES, thread_map, workers
+from ..transform.normals import unit_normals
+from ..coding import lossless, rangecoder
 from ..coding.image import code_image, code_lifting, new_coders
-from ..format.header import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
-from ..format.limits import check_memory, check_work
+from ..format.header import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack, padded_shape
+from ..format.container import WORKERS, check_region, is_tiled, output_of, read
+from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
 from ..transform import directional, frames, riesz
 from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
-from ..transform.wavelets import padded_shape, wavedec, waverec
-from . import tiles as tiling
+from ..transform.wavelets import wavedec, waverec
 
 __all__ = [
     "decode",
@@ -95,8 +97,8 @@ def decode(
         data = bytes(memoryview(data))
     except TypeError:
         raise TypeError(f"decode takes the bytes of a .bdl file, not {type(data).__name__}") from None
-    if tiling.is_tiled(data):
-        return tiling.decode(
+    if is_tiled(data):
+        return _decode_tiles(
             data,
             restore=restore,
             max_memory=max_memory,
@@ -106,7 +108,7 @@ def decode(
             **limits,
         )
     header, streams = unpack(data, **limits)
-    top, left, rows, cols = tiling.check_region(region, header.height, header.width)
+    top, left, rows, cols = check_region(region, header.height, header.width)
     image = decode_parsed(header, streams, restore=restore, max_memory=max_memory, max_work=max_work)
     return image[top : top + rows, left : left + cols] if region is not None else image
 
@@ -124,7 +126,7 @@ def decode_parsed(
         check_memory(header, max_memory)
         try:
             return lossless.decode_file(header, streams[2])
-        except entropy.CorruptStream as err:
+        except rangecoder.CorruptStream as err:
             raise FormatError(f"corrupt .bdl file: {err}") from None
     if not restore:
         header = replace(header, restoration=0, loop_filter=None)
@@ -150,7 +152,7 @@ def decoded_bins(
         lifting = code_lifting(coders[1], header)
         for coder in coders:
             coder.check()
-    except entropy.CorruptStream as err:
+    except rangecoder.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
     shape = padded_shape((header.height, header.width), header.levels)
     return trees, [q.reshape(shape) for q in quantized], lifting
@@ -180,12 +182,12 @@ def _channel_map(header: Header):
     """``each(function, channels)``, the list of ``function(channel)``: from :data:`THREADS_FROM`
     pixels on, the first channel in the calling thread and the others in the process's worker
     threads (:func:`bandelets.restore.restoration.workers`, not new threads at every decode)."""
-    if header.channels < 2 or header.height * header.width < THREADS_FROM or restoration.CORES < 2:
+    if header.channels < 2 or header.height * header.width < THREADS_FROM or CORES < 2:
         return lambda function, channels: [function(channel) for channel in channels]
 
     def each(function, channels):
         first, *others = channels
-        futures = [restoration.workers().submit(function, channel) for channel in others]
+        futures = [workers().submit(function, channel) for channel in others]
         return [function(first), *(future.result() for future in futures)]
 
     return each
@@ -245,7 +247,7 @@ def decoded_image(channels, header: Header) -> np.ndarray:
     overflow = FormatError("corrupt .bdl file: the decoded values overflow")
     if header.kind == "normal-map":  # 2 or 3 channels (bandelets.format.header.unpack)
         # Two channels of a map of unit vectors are equidistant coordinates (bandelets.codec.normalmaps).
-        out = metrics.unit_normals(channels, header.height, header.width, equidistant=header.layout == "xyz")
+        out = unit_normals(channels, header.height, header.width, equidistant=header.layout == "xyz")
         if out is None:
             raise overflow
         # Returned in the layout the source had (bandelets.format.header.LAYOUTS).
@@ -254,3 +256,73 @@ def decoded_image(channels, header: Header) -> np.ndarray:
     if not np.all(np.isfinite(out)):
         raise overflow
     return out[..., 0] if header.channels == 1 else out
+
+
+def _decode_tiles(
+    data: bytes,
+    *,
+    restore: bool = True,
+    max_memory: int,
+    max_work: int,
+    region: tuple[int, int, int, int] | None = None,
+    progress: bool = False,
+    **limits,
+) -> np.ndarray:
+    """Decode a tiled .bdl file (see :func:`bandelets.decode`), only the tiles ``region``
+    (``row, column, height, width``) touches when given, at most :data:`WORKERS` tiles at once.
+
+    ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds the restoration
+    of the tiles decoded, all together (:func:`bandelets.format.limits.restoration_work`), as it bounds
+    that of an image in one piece.
+    """
+
+    grid, tiles = read(data, **limits)
+    top, left, rows, cols = check_region(region, grid.height, grid.width)
+    wanted = [
+        (i, box)
+        for i, box in enumerate(grid.boxes)
+        if box[0].start < top + rows
+        and top < box[0].stop
+        and box[1].start < left + cols
+        and left < box[1].stop
+    ]
+    parsed = [(box, tiles[i]()) for i, box in wanted]
+    headers = [replace(h, restoration=0) if not restore else h for _, (h, _) in parsed]
+    channels = output_of(headers[0])[3]
+    out_bytes = rows * cols * channels * 8
+    per_tile = max(
+        decoder_memory(h.height, h.width, h.channels, h.levels, h.frames, h.restoration > 0) for h in headers
+    )
+    work = sum(restoration_work(h) for h in headers)
+    if work > max_work:
+        raise FormatError(
+            f"restoring these {len(headers)} tiles is {work:.3g} sample-iterations of work, above the limit "
+            f"of {max_work:.3g} (max_work)"
+        )
+    need = out_bytes + min(WORKERS, len(parsed)) * per_tile
+    if need > max_memory:
+        raise FormatError(
+            f"decoding this {cols} x {rows} x {channels} image needs about {need / 2**20:.0f} MiB, above the "
+            f"limit of {max_memory / 2**20:.0f} MiB (--max-memory, max_memory)"
+        )
+    out = np.empty((rows, cols, channels))
+
+    def decoded(item):
+        box, (header, streams) = item
+        return box, decode_parsed(header, streams, restore=restore, max_memory=per_tile, max_work=max_work)
+
+    with Progress(progress) as line:
+        line.stage(f"decoding {len(parsed)} tiles")
+        for (r, c), tile in thread_map(decoded, parsed, WORKERS):
+            tile = tile.reshape(tile.shape[:2] + (channels,))
+            r_in = slice(max(r.start, top), min(r.stop, top + rows))
+            c_in = slice(max(c.start, left), min(c.stop, left + cols))
+            out[_shift(r_in, top), _shift(c_in, left)] = tile[_shift(r_in, r.start), _shift(c_in, c.start)]
+            line.step()
+    return out[..., 0] if channels == 1 else out
+
+
+def _shift(span: slice, by: int) -> slice:
+    return slice(span.start - by, span.stop - by)
+
+

@@ -7,7 +7,6 @@ work on it.
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 from typing import Literal
 
@@ -20,20 +19,16 @@ from ..format.header import (
     KINDS,
     MAX_MEMORY,
     MAX_NORMAL_WEIGHT,
-    MAX_THRESHOLD,
     MAX_WORK,
     MIN_NORMAL_WEIGHT,
-    MIN_THRESHOLD,
-    TRANSFORMS,
-    TRANSFORMS_1D,
     WAVELETS,
     Kind,
     Transform1D,
     Wavelet,
 )
-from ..format.limits import check_encodable
+from ..format.checks import check_options
 from ..transform.wavelets import check_extension
-from .tiles import MIN_TILE
+from ..format.container import MIN_TILE
 
 __all__ = [
     "AUTO_WAVELET",
@@ -54,10 +49,88 @@ AUTO_WAVELET = "auto"
 class EncodeOptions:
     """How to encode an image: every choice of :func:`bandelets.encode` but the target.
 
-    The attributes are the keywords of :func:`bandelets.encode`, with the same defaults, and
-    ``mesh_vertices``: the vertex count of the mesh a geometry image was sampled from, which
-    :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).
-    ``ValueError`` on construction if any is unusable (whatever the image).
+    Built once from the keywords of :func:`bandelets.encode` (or of
+    :func:`bandelets.surfaces.codec.encode_mesh`), validated on construction (``ValueError`` if any
+    field is unusable, whatever the image), and passed down. Strings name the choices, as in the
+    command line; ``kind`` is made a :class:`~bandelets.format.header.Kind` at the door.
+
+    Attributes
+    ----------
+    transform : {"bandelet", "wavelet"}
+        ``"wavelet"`` forces every square to NULL: the same codec without geometry.
+    kind : {"image", "normal-map", "geometry-image"}
+        A normal map is renormalised to unit vectors before coding and after decoding.
+    wavelet : str
+        See :data:`bandelets.format.header.WAVELETS`, or ``"auto"``: encode with each of
+        :data:`bandelets.codec.encoder.AUTO_CANDIDATES` and keep the better file (twice the time).
+    transform_1d : {"alpert2", "haar"}
+        1D transform along the directions.
+    depth : {0, 8, 16}
+        Bit depth of the PNG the values came from (0: float), recorded for decoding to PNG.
+    frames : bool
+        Geometry images only (normal maps choose by themselves, see ``array``): code the detail
+        coefficients of each level in local frames (normal, tangents) estimated from the decoded
+        coarser levels (:mod:`bandelets.transform.frames`).
+    normal_weight : float
+        With ``frames``: precision given to the normal component over the tangential ones,
+        from 1/64 to 64.
+    extension : {"symmetric", "spherical"}
+        Geometry images only: boundary extension of the wavelet; ``"spherical"`` for an
+        octahedral spherical geometry image (square, even side: each edge is glued to itself
+        reversed, see :mod:`bandelets.surfaces.octahedral`).
+    restore : bool
+        Let the decoder restore the image (:mod:`bandelets.restore.restoration`) for as many
+        iterations as bring it closest to ``array`` (none if that is best).
+        Costs no bits; the encoder and decoder then take longer (about 1.6 ms of CPU per
+        iteration for 256 x 256 x 2, 6.5 ms for 512 x 512 x 2).
+    loop_filter : bool
+        Let the decoder filter the (restored) image with a small filter the encoder fits to
+        ``array`` and writes into the file (:mod:`bandelets.restore.loopfilter`), where it pays for its
+        bytes (a few dozen). Not in tiled files.
+    lifting : bool, optional
+        Lift the finest :data:`bandelets.transform.directional.LEVELS` wavelet levels along directions
+        chosen per block (:mod:`bandelets.transform.directional`; cdf97, not for a geometry image):
+        better files on creases at an angle (+0.66 dB BD on the 256 x 256 crease map, +2.63 dB
+        at 512, +0.72 dB on fandisk's normal map) in about the same encoding and decoding time.
+        None (the default): on for normal maps with cdf97 where the directions pay
+        (:func:`bandelets.transform.directional.pays`; else the file is coded without them), off
+        otherwise. True: always (an error where it cannot apply); False: never.
+    progress : bool
+        A progress line on stderr naming the stage (rate control, restoration search).
+    max_memory : int
+        Refuse (``ValueError``) an image whose encoding would need more than this many bytes.
+    xy : bool
+        Normal maps: ``array`` holds ``x, y`` and an unused blue (see :mod:`bandelets.codec.normalmaps`,
+        which also says how two channels and integer samples are read).
+    max_work : int
+        Restore for no more iterations than a decoder's ``max_work`` allows
+        (:func:`bandelets.format.limits.check_work`): with the default, the file decodes within the
+        default limits of :func:`bandelets.decode`.
+    tile : int
+        An image with a side above ``tile`` pixels is coded in tiles of about ``tile`` x ``tile``
+        (:mod:`bandelets.codec.tiles`: independent tiles at one threshold, two at a time; memory
+        bounded whatever the size, a region can be decoded alone), at least
+        :data:`~bandelets.codec.tiles.MIN_TILE`. The default, 0, codes in one piece what fits
+        ``max_memory`` and in tiles of :data:`~bandelets.codec.tiles.TILE` what does not (tile borders
+        can show at low rates: :func:`bandelets.format.limits.tile_side`).
+    lossless : bool, optional
+        True: code the integer samples of the source exactly (:mod:`bandelets.coding.lossless`; no
+        target): ``uint8`` / ``uint16`` samples of a normal map, or values read from 8 or
+        16-bit samples with their ``depth`` (``ValueError`` for anything else); the file decodes
+        to the same values, every channel given (``xy`` aside). None (the default): under a
+        ``bpp`` target, the lossless file when the source has such samples and that file fits
+        the target (smaller than asked, and exact). False: never.
+    riesz : bool, optional
+        Normal maps coded as two channels: code them as their Riesz pair (:mod:`bandelets.transform.riesz`:
+        the channel along the gradients of a height and the one across them), which halves what
+        a map baked from a height field costs (+1.4 dB BD on the 256 x 256 bevel map, +4.1 on the
+        bumps, +0.7 on the acacia door). None (the default): where the estimate says it pays
+        (:data:`RIESZ_PAYS_BELOW`), or under a rate target where it nearly does, both files and
+        the better kept (:data:`RIESZ_TRIAL_BELOW`), up to :data:`TRIAL_PIXELS` pixels and with
+        cdf97. True: always (a Riesz pair is not lifted along directions); False: never.
+    mesh_vertices : int
+        The vertex count of the mesh a geometry image was sampled from, which
+        :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).
 
     Examples
     --------
@@ -100,6 +173,7 @@ class EncodeOptions:
             )
         if self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
+        object.__setattr__(self, "kind", Kind(self.kind))  # the string turned into its type once, here
         if self.xy and self.kind != "normal-map":
             raise ValueError("xy applies to normal maps only")
         if self.riesz not in (None, True, False):
@@ -132,70 +206,6 @@ class EncodeOptions:
         if not (np.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT):
             raise ValueError(f"normal_weight must be from 1/64 to 64, got {weight}")
         check_extension((2, 2), "cdf97", 1, self.extension)
-
-
-def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
-    """Validate an image and return it as float64 ``(H, W, C)``; ``ValueError`` if unusable.
-
-    An image whose encoding would need more than ``max_memory`` bytes, or whose file the default
-    decoder would refuse, is refused before any work on it
-    (:func:`bandelets.format.limits.check_encodable`; a float64 array is not copied, another dtype is
-    converted first).
-    """
-    if kind not in KINDS:
-        raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(KINDS)}")
-    try:
-        x = np.asarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"input is not a numeric array ({err})") from None
-    if x.ndim == 2:
-        x = x[..., None]
-    if x.ndim != 3 or not 1 <= x.shape[2] <= 4:
-        raise ValueError(f"expected an H x W or H x W x C array with 1 to 4 channels, got shape {x.shape}")
-    if x.shape[0] * x.shape[1] < 2:
-        raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
-    if kind != "image" and x.shape[2] != 3:
-        raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
-    check_encodable(*x.shape, max_memory, tile=0)
-    if not np.all(np.isfinite(x)):
-        raise ValueError("input contains NaN or infinite values")
-    return x
-
-
-def check_options(transform: str, wavelet: str, transform_1d: str, wavelets: tuple = WAVELETS) -> None:
-    """``ValueError`` unless the transform options are usable (``wavelet`` one of ``wavelets``)."""
-    for what, value, choices in (
-        ("transform", transform, TRANSFORMS),
-        ("wavelet", wavelet, wavelets),
-        ("1D transform", transform_1d, TRANSFORMS_1D),
-    ):
-        if value not in choices:
-            raise ValueError(f"unknown {what} {value!r}; choose one of {', '.join(choices)}")
-
-
-def check_targets(kind: str, **targets) -> None:
-    """``ValueError`` (``TypeError`` for a non-number) unless exactly one of the targets ``bpp``,
-    ``threshold``, ``psnr`` and ``max_angle`` is given, and it is usable for ``kind``."""
-    if sum(v is not None for v in targets.values()) != 1:
-        raise ValueError("give exactly one of bpp, threshold, psnr or max_angle")
-    name, value = next((k, v) for k, v in targets.items() if v is not None)
-    if not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    if name == "max_angle" and kind != "normal-map":
-        raise ValueError("max_angle applies to normal maps only")
-    if name == "threshold":
-        check_threshold(value)
-    elif name == "max_angle" and not (np.isfinite(value) and 0 < value < 180):
-        raise ValueError(f"max_angle must be a number of degrees from 0 to 180, got {value}")
-    elif not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive number, got {value}")
-
-
-def check_threshold(threshold: float) -> None:
-    """``ValueError`` unless ``threshold`` is a number a file may hold
-    (:data:`~bandelets.format.header.MIN_THRESHOLD` to :data:`~bandelets.format.header.MAX_THRESHOLD`)."""
-    if not MIN_THRESHOLD <= threshold <= MAX_THRESHOLD:
-        raise ValueError(f"threshold must be from {MIN_THRESHOLD:g} to {MAX_THRESHOLD:g}, got {threshold}")
 
 
 def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:

@@ -4,7 +4,7 @@ of its own (format version 18).
 The approximation of a channel is a small image of bins, smooth where the surface is and with
 jumps at its creases, coded before any detail. Each bin is predicted by the median edge detector
 of LOCO-I (left or up at an edge, the plane through left, up and up-left elsewhere) and the
-residual is coded with the decisions of :func:`bandelets.coding.entropy.code_coefficients` (zero, above
+residual is coded with the decisions of :func:`bandelets.coding.coefficients.code_coefficients` (zero, above
 1, above 2, an Elias-gamma rest, a sign), in contexts read where the residuals cluster:
 
 * the fine context of a decision is the octave of the local gradient of the bins
@@ -12,7 +12,7 @@ residual is coded with the decisions of :func:`bandelets.coding.entropy.code_coe
   magnitude at the same place (0, 1, 2+, or no guide: the channel coded before, whose residual,
   predicted the same way, is large where this one's is, at the creases a normal map's channels
   share); it is backed by the gradient's octave alone;
-* a third, mixed in (:func:`bandelets.coding.entropy.code_mixed`), reads the octave of the residuals'
+* a third, mixed in (:func:`bandelets.coding.rangecoder.code_mixed`), reads the octave of the residuals'
   magnitudes at left, up, up-left and up-right plus half the gradient, and the octave of the
   guide's residual;
 * the sign reads the signs of the residuals at left and up and of the guide's.
@@ -33,7 +33,7 @@ its blend of predictors: 5 to 40 % more than this one on these small images, too
 to learn from a few thousand bins).
 
 Why written here: the context model is the project's, compiled with numba with its coder as
-:mod:`bandelets.coding.entropy` explains.
+:mod:`bandelets.coding.rangecoder` explains.
 """
 
 from __future__ import annotations
@@ -41,10 +41,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from . import entropy
-from .entropy import (
+from .coefficients import MAX_MAGNITUDE, coefficient_contexts, median_of, median_prediction, neighbourhood
+from .rangecoder import (
     COST_SCALE,
-    MAX_MAGNITUDE,
     SPENT,
     Coder,
     CorruptStream,
@@ -52,9 +51,6 @@ from .entropy import (
     code_mixed,
     elias_gamma,
     keep_registers,
-    median_of,
-    median_prediction,
-    neighbourhood,
     octave,
     registers,
 )
@@ -66,7 +62,7 @@ _N_GUIDE = 4  # the guide's residual magnitude: 0, 1, 2+, or no guide
 _N_ACTIVITY = 12
 _N_GUIDE_OCTAVES = 6
 _PREFIX = 20
-_FINE = entropy.coefficient_contexts()  # after the detail coefficients' contexts, in the same table
+_FINE = coefficient_contexts()  # after the detail coefficients' contexts, in the same table
 _COARSE = _FINE + 3 * _N_GRADIENT * _N_GUIDE
 _MIXED = _COARSE + 3 * _N_GRADIENT
 _WEIGHTS = _MIXED + 3 * _N_ACTIVITY * _N_GUIDE_OCTAVES  # one pair per decision x gradient 0, 1, 2+
@@ -170,7 +166,7 @@ def code_approximation(
     coder: Coder, q: np.ndarray, plan, known: np.ndarray, guide: np.ndarray, spent: np.ndarray
 ) -> None:
     """Code the approximation ``plan`` (:func:`bandelets.coding.order.approximation_plan`) of one
-    channel, as :func:`bandelets.coding.entropy.code_coefficients` codes details (the same arguments:
+    channel, as :func:`bandelets.coding.coefficients.code_coefficients` codes details (the same arguments:
     ``q`` filled in when decoding, ``known`` updated, ``spent`` the ideal code lengths, ``guide``
     the channel coded before or empty), with a coder of :data:`N_CONTEXTS` contexts."""
     n = plan.order.shape[0]

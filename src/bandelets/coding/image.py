@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..format.header import Header
-from ..transform import directional
+from ..format.header import Header, padded_shape
+
 from ..transform.bandeletize import debandeletize_bins
 from ..transform.quadtree import flat_quadtree, root_width
-from ..transform.wavelets import padded_shape, subband_slices
-from . import approximation, entropy
+from ..transform.wavelets import subband_slices
+from . import approximation, coefficients, directions, rangecoder
 from .order import approximation_plan, subband_plan
 from .squarecontexts import square_hints
 from .trees import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
@@ -58,13 +58,13 @@ def code_image(
     Order: the approximation of every channel, then subband by subband (coarse to fine,
     H, V, D): its quadtree and directions (:mod:`bandelets.coding.trees`), then for each
     channel its bandelet squares and the rest of its coefficients (:mod:`bandelets.coding.order`).
-    The guide of a channel (a context, see :func:`bandelets.coding.entropy.code_coefficients`) is
+    The guide of a channel (a context, see :func:`bandelets.coding.coefficients.code_coefficients`) is
     what the previous channel coded, bandelet coefficients included. After a channel's
     bandelet squares, the contexts are given the wavelet coefficients those
     squares decode to.
 
     ``estimate``: the approximation is coded with version 17's model
-    (:func:`bandelets.coding.entropy.code_coefficients`), not the file's (:mod:`bandelets.coding.approximation`),
+    (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's (:mod:`bandelets.coding.approximation`),
     for the level choice's prices (:mod:`bandelets.search.levelchoice`): no file is made that way.
 
     Returns
@@ -84,7 +84,7 @@ def code_image(
     coarse = approximation_plan(shape, header.levels)
     guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
-        code = entropy.code_coefficients if estimate else approximation.code_approximation
+        code = coefficients.code_coefficients if estimate else approximation.code_approximation
         code(coeffs, q, coarse, known[c], guides[c], spent[c])
     out = []
     for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
@@ -105,24 +105,24 @@ def code_image(
         for c, q in enumerate(quantized):
             if squares.order.size:
                 hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
-                entropy.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c], hints)
+                coefficients.code_coefficients(coeffs, q, squares, known[c], guides[c], spent[c], hints)
                 view = known[c].reshape(shape)[where]
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
-            entropy.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
+            coefficients.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
     return out, quantized, spent
 
 
-def code_lifting(coder: entropy.Coder, header: Header, lifting: list | None = None) -> list | None:
+def code_lifting(coder: rangecoder.Coder, header: Header, lifting: list | None = None) -> list | None:
     """Code (``lifting`` given) or decode the directions of the levels lifted along directions
     (:func:`bandelets.transform.directional.code_fields`), which end the directions stream, after
     :func:`code_image`; None for a file without them."""
     if not header.lifting:
         return None
     shape = padded_shape((header.height, header.width), header.levels)
-    return directional.code_fields(coder, lifting, shape, header.lifting, N_DIRECTION_CONTEXTS)
+    return directions.code_fields(coder, lifting, shape, header.lifting, N_DIRECTION_CONTEXTS)
 
 
-def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[entropy.Coder, ...]:
+def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[rangecoder.Coder, ...]:
     """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
-    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directional.N_CONTEXTS, approximation.N_CONTEXTS)
-    return tuple(entropy.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
+    sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directions.N_CONTEXTS, approximation.N_CONTEXTS)
+    return tuple(rangecoder.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))

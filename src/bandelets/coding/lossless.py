@@ -9,18 +9,18 @@ sample (:func:`_blend`, after JPEG XL's weighted predictor), whichever codes the
 (:func:`encode_samples`); the z of a normal map is predicted from its x and y where they make
 it (:func:`_unit_z`). The prediction is corrected by the mean of the residuals met before in
 its context (JPEG-LS's bias cancellation). The residual goes through the project's adaptive
-binary range coder (:mod:`bandelets.coding.entropy`): a zero flag, a sign, an Elias-gamma magnitude
+binary range coder (:mod:`bandelets.coding.rangecoder`): a zero flag, a sign, an Elias-gamma magnitude
 with an adaptive prefix and the first bit below it in context. A decision's fine context is
 the sample's channel, its three signed local gradients (quantized to 7 levels, a context and
 its mirror merged, JPEG-LS style), the signed residual of the previous channel at the same
 pixel (the channels of a normal map err together at its creases) and the residual energy at
 left and up; it is backed by a coarse context (channel, activity in octaves, the previous
-channel's residual magnitude) as :mod:`bandelets.coding.entropy` backs its own.
+channel's residual magnitude) as :mod:`bandelets.coding.rangecoder` backs its own.
 
 Why written here: libraries that code losslessly (libjxl, libavif, libpng through imagecodecs)
 write their own containers; a .bdl file has one format, one header and one CRC, read by one
 decoder with its limits (:mod:`bandelets.format.header`). The coder is the project's, compiled with
-numba with the context modelling as :mod:`bandelets.coding.entropy` is.
+numba with the context modelling as :mod:`bandelets.coding.rangecoder` is.
 
 The encoder may be given a budget of bytes (:func:`encode_samples`): it stops as soon as the
 file would exceed it, so that trying the lossless file under a rate target costs little when
@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..format.header import DEFAULT_WAVELET, HEADER_BYTES, LOSSLESS, Header, implied_options, pack
-from .entropy import (
+from .rangecoder import (
     POSITION,
     Coder,
     CorruptStream,
@@ -391,7 +391,7 @@ def encode_samples(
 
 def decode_samples(data: bytes, height: int, width: int, channels: int, depth: int) -> np.ndarray:
     """The samples a stream of :func:`encode_samples` holds, ``uint8`` or ``uint16`` (H, W, C);
-    :class:`bandelets.coding.entropy.CorruptStream` when it holds none."""
+    :class:`bandelets.coding.rangecoder.CorruptStream` when it holds none."""
     coder = Coder(N_CONTEXTS, data)
     x = np.zeros((channels, height, width), np.int64)
     blend, unit = (bool(f) for f in code_flags(coder, np.zeros(2, np.int64), np.array([_MODE, _MODE + 1])))

@@ -20,7 +20,7 @@ squares by the (quantized) wavelet coefficients their decoded bandelet coefficie
 back: the wavelet coefficients around a bandelet square, and the finer subbands below it,
 then read meaningful neighbours and parents instead of 1D coefficients laid out in zig-zag.
 
-The context class of a coefficient (:data:`bandelets.coding.entropy.N_CLASSES` of them) tells the
+The context class of a coefficient (:data:`bandelets.coding.coefficients.N_CLASSES` of them) tells the
 coder which statistics it shares: approximation; wavelet detail by orientation and level;
 bandelet by 1D scale counted from the finest.
 """

@@ -14,7 +14,7 @@ tell where its significant coefficients are:
   under the coefficient's support (the samples of the reordered square it is made of).
 
 :func:`square_hints` turns both into a small integer per coefficient, the *hint*, which
-:func:`bandelets.coding.entropy.code_coefficients` adds to the significance context of the bandelet
+:func:`bandelets.coding.coefficients.code_coefficients` adds to the significance context of the bandelet
 classes; it also marks the first coefficient of every square, where the sign model restarts
 (the signs of the two channels of a normal map agree or disagree square by square).
 Measured on the four maps of ``benchmarks/fixed_threshold_rd.py`` (BENCHMARKS, "Contexts for
@@ -31,7 +31,7 @@ from ..transform.bandeletize import ORDER, alpert_matrices, multiwavelet
 from ..transform.geometry import directions
 from ..transform.quadtree import MAX_WIDTH, MIN_WIDTH, Quadtree
 from ..transform.wavelets import subband_slices
-from .entropy import N_HINTS, SQUARE_START
+from .coefficients import N_HINTS, SQUARE_START
 from .order import subband_box
 
 __all__ = ["square_hints"]
@@ -121,8 +121,8 @@ def square_hints(
     Returns
     -------
     ndarray of int64, shape (n,): in the order of the squares' segment of
-    :func:`bandelets.coding.order.subband_plan`, ``predicted * 4 + parent`` (< :data:`bandelets.coding.entropy.N_HINTS`),
-    plus :data:`bandelets.coding.entropy.SQUARE_START` at the first coefficient of each square.
+    :func:`bandelets.coding.order.subband_plan`, ``predicted * 4 + parent`` (< :data:`bandelets.coding.coefficients.N_HINTS`),
+    plus :data:`bandelets.coding.coefficients.SQUARE_START` at the first coefficient of each square.
     """
     level, orientation, _ = subband_slices(shape, levels)[index]
     top, left, sizes, dirs = tree.leaves()

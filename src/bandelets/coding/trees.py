@@ -24,7 +24,7 @@ import numpy as np
 from ..format.header import FormatError
 from ..transform.geometry import directions, nearest_direction
 from ..transform.quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
-from . import entropy
+from . import rangecoder
 
 __all__ = [
     "code_tree",
@@ -114,7 +114,7 @@ def _code_splits(coder, tree, reference, activity, shape, root):
         ref_width, _ = reference.at(r * size + size // 2, c * size + size // 2)
         state = np.where(ref_width == 0, 2, (ref_width < size).astype(np.int64))
         split = np.zeros(r.shape, np.int64) if tree is None else ~tree.leaf[level][r, c]
-        split = entropy.code_flags(
+        split = rangecoder.code_flags(
             coder, split, (3 * level + state) * _N_ACTIVITY + activity(r * size, c * size, size)
         )
         leaf[level][r, c] = split == 0
@@ -130,7 +130,7 @@ def _code_directions(coder, tree, reference, activity, decoded):
     predicted = ~np.isnan(ref_angle)
     state = np.where(reference.widths is None, 0, np.where(predicted, 2, 1))
     context = _HAS + (3 * level + state) * _N_ACTIVITY + activity(rows, cols, widths)
-    has = entropy.code_flags(coder, dirs >= 0 if tree else np.zeros(rows.shape), context)
+    has = rangecoder.code_flags(coder, dirs >= 0 if tree else np.zeros(rows.shape), context)
     out = np.full(rows.shape, -1, np.int64)
     for k in np.unique(level[has == 1]):  # the levels with a direction to code
         width = MIN_WIDTH << int(k)
@@ -139,10 +139,10 @@ def _code_directions(coder, tree, reference, activity, decoded):
         pick = np.nonzero((has == 1) & predicted & (level == k))[0]
         guess = nearest_direction(ref_angle[pick], width)
         offset = (dirs[pick] - guess + n_dirs // 2) % n_dirs - n_dirs // 2 if tree else np.zeros(pick.shape)
-        nonzero = entropy.code_flags(coder, offset != 0, np.full(pick.shape, _ZERO + k))
+        nonzero = rangecoder.code_flags(coder, offset != 0, np.full(pick.shape, _ZERO + k))
         moved = np.nonzero(nonzero)[0]
-        negative = entropy.code_flags(coder, offset[moved] < 0, np.full(moved.shape, _SIGN + k))
-        size = entropy.code_positive(
+        negative = rangecoder.code_flags(coder, offset[moved] < 0, np.full(moved.shape, _SIGN + k))
+        size = rangecoder.code_positive(
             coder,
             np.abs(offset[moved]) if tree else np.ones(moved.shape),
             np.full(moved.shape, _OFFSET + 20 * k),
@@ -154,7 +154,7 @@ def _code_directions(coder, tree, reference, activity, decoded):
         out[pick] = (guess + offset) % n_dirs
         # Without one: a symbol of the adaptive model of this width.
         pick = np.nonzero((has == 1) & ~predicted & (level == k))[0]
-        symbols = entropy.code_symbols(
+        symbols = rangecoder.code_symbols(
             coder,
             dirs[pick] if tree else np.zeros(pick.shape),
             np.full(pick.shape, _SYMBOL_BASES[k]),
@@ -167,8 +167,8 @@ def _code_directions(coder, tree, reference, activity, decoded):
 
 
 def code_tree(
-    splits: entropy.Coder,
-    dirs: entropy.Coder,
+    splits: rangecoder.Coder,
+    dirs: rangecoder.Coder,
     tree: Quadtree | None,
     shape: tuple[int, int],
     reference: _Reference,
@@ -178,7 +178,7 @@ def code_tree(
 
     Parameters
     ----------
-    splits, dirs : entropy.Coder
+    splits, dirs : rangecoder.Coder
         Coders of the split flags (:data:`N_SPLIT_CONTEXTS`) and of the directions
         (:data:`N_DIRECTION_CONTEXTS`).
     tree : Quadtree or None

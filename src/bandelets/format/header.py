@@ -45,7 +45,7 @@ depended on the CPU's LAPACK kernels). Version 7 added direction-adaptive liftin
 levels (cdf97 without local frames, :mod:`bandelets.transform.directional`; its directions end the directions
 stream). Version 8 added the vertex count of the source mesh to the geometry-image options. Version
 9 projects the restoration into the bins every :data:`bandelets.restore.restoration.PROJECT_EVERY`
-iterations, not at every one, changed the coefficient stream's contexts (:mod:`bandelets.coding.entropy`:
+iterations, not at every one, changed the coefficient stream's contexts (:mod:`bandelets.coding.rangecoder`:
 backed by coarse contexts, the sign's upper neighbour, the sibling subband, one class per level),
 and added tiled files (a container of files of one tile, :mod:`bandelets.codec.tiles`). Version 10 gave
 the 1D bandelet coefficients contexts of their own (:mod:`bandelets.coding.squarecontexts`: what the
@@ -60,7 +60,7 @@ layout ``xyz`` as the azimuthal equidistant coordinates of its vectors
 within :data:`bandelets.codec.normalmaps.ONE_WAY` of +z. Version 11 also added the loop filter
 (:mod:`bandelets.restore.loopfilter`), after the streams, reconstructs a bin at its middle
 (:data:`bandelets.format.quantizer.RECONSTRUCTION`, 0.44 of the bin before) and codes the lifting blocks'
-moved flags in the context of their neighbours (:func:`bandelets.coding.entropy.code_flag_map`). Version
+moved flags in the context of their neighbours (:func:`bandelets.coding.rangecoder.code_flag_map`). Version
 12 lets the loop filter take its taps on the other channels over the 5 x 5 square, not only the 3 x
 3, and its own taps over a square, not only a diamond, and added lossless files (transform code 2,
 :mod:`bandelets.coding.lossless`): the integer samples of every channel of the source (depth 8 or 16),
@@ -83,7 +83,7 @@ code the two channels of a lossy normal map as their Riesz pair (the same byte,
 one across them; the decoder turns them back at the end of every synthesis. Version 16 codes the
 significance and the first two magnitude decisions of the detail coefficients from their contexts
 mixed with an activity context, and their larger magnitudes in contexts of that activity
-(:func:`bandelets.coding.entropy.code_coefficients`); the header is unchanged. Version 17 packs the
+(:func:`bandelets.coding.coefficients.code_coefficients`); the header is unchanged. Version 17 packs the
 header: the codes of the transform, wavelet, 1D transform and layout share one byte, the levels,
 channels and depth another, the threshold is a float32 (a float64 before) and the sides and the
 stream lengths LEB128 integers (uint32s before), as are the geometry-image options (the frames flag
@@ -142,6 +142,7 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, replace
+from enum import StrEnum
 from typing import Literal
 
 __all__ = [
@@ -162,6 +163,7 @@ __all__ = [
     "EXTENSIONS",
     "LAYOUTS",
     "Kind",
+    "Layout",
     "Wavelet",
     "Transform1D",
     "DEFAULT_WAVELET",
@@ -202,9 +204,31 @@ FORMAT_VERSION = 18
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.codec.tiles`).
 TILED_CODE = 255
 
+class Kind(StrEnum):
+    """What a file's values are (its kind field); the API and the command line take the strings."""
+
+    #: Any image: values as they are.
+    IMAGE = "image"
+    #: Unit normals, renormalised before coding and after decoding (:mod:`bandelets.codec.normalmaps`).
+    NORMAL_MAP = "normal-map"
+    #: Positions of a surface sampled on a grid (:mod:`bandelets.surfaces`).
+    GEOMETRY_IMAGE = "geometry-image"
+
+
+class Layout(StrEnum):
+    """How a normal map's channels are laid out in the source and in the decoded array."""
+
+    #: Three channels ``x, y, z``.
+    XYZ = "xyz"
+    #: Two channels ``x, y`` (a BC5-style map), or three whose third is no normal component.
+    XY = "xy"
+    #: Red and green of an image hold ``x, y``.
+    RG = "rg"
+
+
 # The code written to disk for each choice. The codes are the format: never renumber one, only
 # add new names (and say so in FORMAT_VERSION). The algorithms take their names from here.
-KIND_CODES = {"image": 0, "normal-map": 1, "geometry-image": 2}
+KIND_CODES = {Kind.IMAGE: 0, Kind.NORMAL_MAP: 1, Kind.GEOMETRY_IMAGE: 2}
 TRANSFORM_CODES = {"bandelet": 0, "wavelet": 1, "lossless": 2}
 #: The transform of a lossless file (:mod:`bandelets.coding.lossless`): not a choice of the lossy coder.
 LOSSLESS = "lossless"
@@ -215,7 +239,7 @@ TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
 #: Boundary extensions of ``cdf97`` (geometry images only).
 EXTENSION_CODES = {"symmetric": 0, "spherical": 1}
 #: Layouts of a normal map's source (see above): ``xy`` and ``rg`` are coded as two channels.
-LAYOUT_CODES = {"xyz": 0, "xy": 1, "rg": 2}
+LAYOUT_CODES = {Layout.XYZ: 0, Layout.XY: 1, Layout.RG: 2}
 #: Sample depths of the source (0: float), for decoding back to them.
 DEPTH_CODES = {0: 0, 8: 1, 16: 2}
 KINDS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
@@ -224,7 +248,6 @@ KINDS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
 #: The transforms of the lossy coder (``encode(transform=...)``).
 TRANSFORMS = tuple(t for t in TRANSFORM_CODES if t != LOSSLESS)
 # The same names as types, for signatures (tests/test_bitstream.py checks they agree).
-Kind = Literal["image", "normal-map", "geometry-image"]
 Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8"]
 Transform1D = Literal["haar", "alpert2"]
 _KIND_OF, _TRANSFORM_OF, _WAVELET_OF, _TRANSFORM_1D_OF, _EXTENSION_OF, _LAYOUT_OF = (
@@ -486,7 +509,7 @@ class Header:
     #: Iterations of :func:`bandelets.restore.restoration.iterate` the decoder runs (0: none).
     restoration: int = 0
     #: Layout of a normal map's source (:data:`LAYOUTS`), which the decoder returns.
-    layout: str = "xyz"
+    layout: Layout = Layout.XYZ
     #: Finest wavelet levels lifted along directions (:mod:`bandelets.transform.directional`; 0: none).
     lifting: int = 0
     #: The loop filter the decoder applies after the restoration (:mod:`bandelets.restore.loopfilter`).
@@ -810,3 +833,9 @@ def _geometry_options(
         "normal_weight": weight,
         "mesh_vertices": vertices,
     }
+
+
+def padded_shape(shape: tuple[int, int], levels: int) -> tuple[int, int]:
+    """Size of a channel once padded to a multiple of ``2**levels`` on both sides."""
+    step = 1 << levels
+    return tuple(-(-side // step) * step for side in shape)

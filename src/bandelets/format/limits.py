@@ -17,11 +17,12 @@ the source map, about 250 MiB).
 
 from __future__ import annotations
 
-from ..codec.tiles import TILE, WORKERS, Grid, cuts
-from ..transform.wavelets import padded_shape
-from .header import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, Header
+from .container import TILE, WORKERS, Grid, cuts
+
+from .header import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, Header, padded_shape
 
 __all__ = [
+    "OWN_FILE",
     "MAX_MEMORY",
     "MAX_WORK",
     "check_encodable",
@@ -32,6 +33,11 @@ __all__ = [
     "restoration_work",
     "tile_side",
 ]
+
+#: The size limits of a file the encoder has just written itself (``unpack(data, **OWN_FILE)``): only
+#: the caller's memory limit applies to it, not the limits on foreign files
+#: (:data:`~bandelets.format.header.MAX_SIDE`, :data:`~bandelets.format.header.MAX_SAMPLES`).
+OWN_FILE = {"max_side": 2**32, "max_samples": 2**64}
 
 # Working set per padded pixel and per padded sample, measured with tracemalloc (peak of the
 # numpy allocations, JIT compiled beforehand) on generated normal maps and their first channel:

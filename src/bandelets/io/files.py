@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..format.limits import MAX_MEMORY, check_encodable
+from ..format.samples import as_read, from_samples, integer_samples, to_samples
 from .floatformats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
 
 __all__ = [
@@ -34,26 +35,6 @@ __all__ = [
     "write_array",
     "write_atomic",
 ]
-
-
-def to_samples(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
-    """Values as unsigned samples of ``depth`` bits (8 or 16): ``[0, 1]`` for images, ``[-1, 1]``
-    for normal maps (``(v + 1) / 2``), rounded and clipped."""
-    values = (values + 1.0) / 2.0 if kind == "normal-map" else values
-    top = 2**depth - 1
-    return np.clip(np.rint(values * top), 0, top).astype(np.uint8 if depth == 8 else np.uint16)
-
-
-def from_samples(pixels: np.ndarray, kind: str, depth: int) -> np.ndarray:
-    """Float64 values of unsigned samples of ``depth`` bits (the inverse of :func:`to_samples`)."""
-    values = pixels.astype(np.float64) / (2**depth - 1)
-    return 2.0 * values - 1.0 if kind == "normal-map" else values
-
-
-def as_read(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
-    """``values`` as a file of ``depth`` bits (0: float, unchanged) would give them back: what a
-    decoded image is once written at its source's depth."""
-    return from_samples(to_samples(values, kind, depth), kind, depth) if depth else values
 
 
 #: Suffixes of the files read and written: PNG (8 or 16-bit), .npy, OpenEXR, TIFF (8, 16-bit, float).
@@ -74,23 +55,6 @@ def check_suffix(path: str | os.PathLike, what: str = "input") -> None:
         raise ValueError(
             f"{path}: unsupported {what} format {suffix or '(none)'}; use {', '.join(SUFFIXES[:-1])}"
         )
-
-
-def integer_samples(values: np.ndarray, kind: str, depth: int = 0) -> tuple[np.ndarray, int]:
-    """A normal map's ``uint8`` / ``uint16`` samples as values (as PNG samples) and their depth;
-    ``ValueError`` for another integer type, which has no agreed scale, or a ``depth`` that
-    disagrees. Floats, and integers of any other kind, are returned as they are."""
-    if kind != "normal-map" or values.dtype.kind not in "uib":
-        return values, depth
-    bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(values.dtype)
-    if bits is None:
-        raise ValueError(
-            f"a normal map of {values.dtype} values has no agreed scale: give floats in [-1, 1] "
-            "or uint8 / uint16 samples"
-        )
-    if depth not in (0, bits):
-        raise ValueError(f"a normal map of {values.dtype} samples has depth {bits}, not {depth}")
-    return from_samples(values, kind, bits), bits
 
 
 def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY) -> tuple[np.ndarray, int]:

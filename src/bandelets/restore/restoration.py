@@ -93,16 +93,14 @@ only where it ends, is what the encoder's choice of the count regularises.
 
 from __future__ import annotations
 
-import os
-import threading
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
 from itertools import count
 
 import numpy as np
 from numba import njit
 
 from ..format.quantizer import clip_into_bins, dequantize
+from ..runtime.threads import CORES, workers
 
 __all__ = [
     "STEP",
@@ -147,14 +145,6 @@ _SHORTEST = 1e-6
 #: in two threads: with format version 9's kernel at 128^2 x 3 already 0.29 ms against 0.36 in one,
 #: at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
-#: Cores this process may run on (its CPU affinity): the kernels that split their rows in threads ask.
-CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-if hasattr(os, "register_at_fork"):  # a forked child has the pool but not its thread: a new one
-    os.register_at_fork(after_in_child=lambda: globals().update(_POOL=None, _POOL_LOCK=threading.Lock()))
-
-
 def penalty_gradient(
     x: np.ndarray,
     smoothing: float,
@@ -240,20 +230,6 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, 
     future = workers().submit(_rows, *args, half, rows)
     _rows(*args, 0, half)
     future.result()
-
-
-def workers() -> ThreadPoolExecutor:
-    """The process's worker threads, one fewer than :data:`CORES` (the calling thread takes a share
-    of the work): the second half of the rows of an iteration, the other channels of a transform
-    (:func:`bandelets.codec.decoder.channel_transforms`), half of the rows of the encoder's measure
-    (:func:`bandelets.metrics.psnr_of_channels`). Made once, not a thread started at every call
-    (with the measure's float64 copy, 15 % of the CPU time of the encoder's restoration search at
-    512 x 512 on a loaded 2-core machine: 362-380 ms before, 311-321 ms after, same files)."""
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None:
-            _POOL = ThreadPoolExecutor(max_workers=max(CORES - 1, 1), thread_name_prefix="bandelets")
-        return _POOL
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -2,7 +2,7 @@
 expects (format unchanged: the header holds the levels).
 
 The coarse approximation is coded as the residual of the median predictor of LOCO-I
-(:func:`bandelets.coding.entropy.code_coefficients`), an intra prediction in all but name. On
+(:func:`bandelets.coding.coefficients.code_coefficients`), an intra prediction in all but name. On
 piecewise-flat maps (facets, flat backgrounds, bevels with a flat top) that prediction codes a
 coarse approximation for less than the CDF 9/7 levels that would split it further, whose long
 synthesis functions also spread each edge's quantization error far around it: stopping at 2

@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["MIN_WIDTH", "MAX_WIDTH", "Quadtree", "root_width", "best_quadtree", "flat_quadtree", "morton"]
+__all__ = ["MIN_WIDTH", "MAX_WIDTH", "Quadtree", "root_width", "flat_quadtree", "morton"]
 
 #: Smallest square width, as in the paper.
 MIN_WIDTH = 4
@@ -140,37 +140,6 @@ def morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         code |= ((cols >> bit) & 1) << (2 * bit)
         code |= ((rows >> bit) & 1) << (2 * bit + 1)
     return code
-
-
-def best_quadtree(costs: list[np.ndarray], dirs: list[np.ndarray], split_cost: float) -> Quadtree:
-    """Paper's bottom-up merge.
-
-    Parameters
-    ----------
-    costs : list of ndarray
-        ``costs[l]``, shape ``(R / w_l, C / w_l)``: best Lagrangian of each square of width
-        ``w_l = 4 * 2**l`` over the covered ``R x C`` region, for ``l = 0 .. n_levels - 1``.
-    dirs : list of ndarray of int
-        The direction achieving it (-1 for NULL), same shapes.
-    split_cost : float
-        Lagrangian price of a split, ``lambda T**2`` for the paper's 1 bit.
-
-    Returns
-    -------
-    Quadtree
-    """
-    if not costs:
-        return flat_quadtree((0, 0), 0)
-    best = costs[0]
-    merged = [np.ones(costs[0].shape, bool)]
-    for level in range(1, len(costs)):
-        rows, cols = costs[level].shape
-        children = best.reshape(rows, 2, cols, 2).sum(axis=(1, 3)) + split_cost
-        merge = costs[level] < children
-        merged.append(merge)
-        best = np.where(merge, costs[level], children)
-    root = MIN_WIDTH << (len(costs) - 1)
-    return Quadtree(root, tuple(merged), tuple(np.asarray(d, np.int64) for d in dirs))
 
 
 def flat_quadtree(shape: tuple[int, int], root: int) -> Quadtree:

@@ -47,14 +47,7 @@ __all__ = [
     "wavedec",
     "waverec",
     "max_levels",
-    "padded_shape",
 ]
-
-
-def padded_shape(shape: tuple[int, int], levels: int) -> tuple[int, int]:
-    """Size of a channel once padded to a multiple of ``2**levels`` on both sides."""
-    step = 1 << levels
-    return tuple(-(-side // step) * step for side in shape)
 
 
 def max_levels(shape: tuple[int, int]) -> int:
