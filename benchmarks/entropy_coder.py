@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from bandelets.coding import entropy
+from bandelets.coding import rangecoder
 
 N = 1_000_000
 N_PY = 50_000  # the per-call loop is timed on a slice and scaled

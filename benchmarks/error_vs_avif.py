@@ -21,7 +21,8 @@ from scipy import ndimage
 import bandelets
 from bandelets.apps import anchors
 from bandelets.io.files import read_array
-from bandelets.metrics import bits_per_pixel, psnr, unit_vectors
+from bandelets.metrics import bits_per_pixel, psnr
+from bandelets.transform.normals import unit_vectors
 from bandelets.samples import crease_normal_map
 from bandelets.transform.wavelets import max_levels, subband_slices, wavedec
 

@@ -29,7 +29,8 @@ import numpy as np
 
 import bandelets
 from bandelets.format.header import unpack
-from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
+from bandelets.transform.normals import unit_vectors
 from bandelets.samples import bump_normal_map, crease_normal_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

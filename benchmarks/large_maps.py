@@ -27,7 +27,7 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.codec.tiles import header_of
+from bandelets.format.container import header_of
 from bandelets.metrics import psnr
 from bandelets.samples import crease_normal_map
 

@@ -22,7 +22,7 @@ import numpy as np
 
 import bandelets
 from bandelets.apps import anchors
-from bandelets.io.files import from_samples, to_samples
+from bandelets.format.samples import from_samples, to_samples
 from bandelets.samples import bump_normal_map, crease_normal_map
 
 CODECS = ("jpegxl", "avif", "jpeg2000")

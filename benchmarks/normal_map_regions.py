@@ -29,7 +29,8 @@ from bandelets.codec.decoder import decoded_bins
 from bandelets.coding.image import code_image, new_coders
 from bandelets.format.header import unpack
 from bandelets.io.files import read_array
-from bandelets.metrics import psnr, unit_vectors
+from bandelets.metrics import psnr
+from bandelets.transform.normals import unit_vectors
 from bandelets.transform.wavelets import subband_slices
 
 BORDER = 8

@@ -37,7 +37,8 @@ import numpy as np
 import bandelets
 from bandelets.apps import anchors
 from bandelets.format.header import unpack
-from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
+from bandelets.transform.normals import unit_vectors
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rd_normal_maps import RATES, RENDERED, _capped, load, rendered, sample  # noqa: E402

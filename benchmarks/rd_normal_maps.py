@@ -63,8 +63,10 @@ import numpy as np
 import bandelets
 from bandelets.apps import anchors
 from bandelets.format.header import unpack
-from bandelets.io.files import from_samples, write_atomic
-from bandelets.metrics import bd_psnr, bits_per_pixel, psnr, unit_vectors
+from bandelets.format.samples import from_samples
+from bandelets.io.files import write_atomic
+from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
+from bandelets.transform.normals import unit_vectors
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
 
 HERE = Path(__file__).resolve().parent

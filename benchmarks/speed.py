@@ -37,9 +37,9 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.codec.tiles import header_of
+from bandelets.format.container import header_of
 from bandelets.format.limits import check_encodable
-from bandelets.io.files import from_samples
+from bandelets.format.samples import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
 
 #: ``--map``: the source of each size, as the memory's child process makes it.

@@ -25,7 +25,7 @@ import numpy as np
 import bandelets
 from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
-from bandelets.codec.tiles import cuts
+from bandelets.format.container import cuts
 from bandelets.metrics import bits_per_pixel, psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.coding import entropy
+from bandelets.coding import coefficients
 from bandelets.coding.approximation import N_CONTEXTS, code_approximation
 from bandelets.coding.rangecoder import Coder, CorruptStream
 from bandelets.coding.order import approximation_plan

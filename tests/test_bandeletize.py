@@ -8,7 +8,7 @@ import pytest
 from bandelets.format.header import TRANSFORMS_1D
 from bandelets.transform.bandeletize import bandeletize, debandeletize, transform_rows
 from bandelets.transform.geometry import directions, zigzag
-from bandelets.transform.quadtree import best_quadtree
+from bandelets.search.basis import best_quadtree
 
 
 @pytest.mark.parametrize("kind", TRANSFORMS_1D)

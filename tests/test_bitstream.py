@@ -105,7 +105,7 @@ def test_format_error_is_a_value_error():
 
 
 def test_the_types_of_the_names_are_the_coded_names():
-    assert typing.get_args(Kind) == KINDS
+    assert tuple(Kind) == KINDS
     assert typing.get_args(Wavelet) == WAVELETS
     assert typing.get_args(Transform1D) == TRANSFORMS_1D
 

@@ -13,9 +13,10 @@ from bandelets import metrics
 from bandelets.codec import encoder
 from bandelets.codec.options import EncodeOptions
 from bandelets.format.header import WAVELETS, unpack
-from bandelets.io.files import as_read, from_samples, to_samples
+from bandelets.format.samples import as_read, from_samples, to_samples
 from bandelets.search.lagrangian import LAMBDA
-from bandelets.transform.wavelets import padded_shape, subband_slices
+from bandelets.format.header import padded_shape
+from bandelets.transform.wavelets import subband_slices
 
 
 def _n_bandelet_squares(b) -> int:
@@ -435,7 +436,7 @@ def test_xy_beyond_the_rim_are_coded_as_given(crease_map):
 
 
 def test_maps_facing_one_way_are_coded_as_two_channels():
-    from bandelets.codec.normalmaps import ONE_WAY
+    from bandelets.transform.normals import ONE_WAY
 
     for angle, channels in ((0.9 * ONE_WAY, 2), (1.1 * ONE_WAY, 3)):
         tilt = np.broadcast_to(np.linspace(0.0, angle, 32), (32, 32))  # turning about y, left to right

@@ -9,7 +9,7 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
-from bandelets.coding import entropy
+from bandelets.coding import rangecoder
 from bandelets.format.header import FormatError, pack, unpack
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.coding import entropy
+from bandelets.coding import coefficients, rangecoder
 from bandelets.coding.rangecoder import Coder, CorruptStream, code_flag_map, code_flags, code_symbols
 
 
@@ -92,7 +92,7 @@ def test_symbols_round_trip(rng):
     np.testing.assert_array_equal(got, symbols)
 
 
-@pytest.mark.skipif(not hasattr(entropy, "code_positive"), reason="no code_positive here")
+@pytest.mark.skipif(not hasattr(rangecoder, "code_positive"), reason="no code_positive here")
 def test_positive_integers_round_trip(rng):
     values = rng.geometric(0.2, 3000).astype(np.int64)
     values[:3] = [1, 2, 1 << 20]
@@ -179,7 +179,7 @@ def test_rarely_used_contexts_learn_from_their_family():
     # The same decisions, each class learning alone from 1/2.
     alone = Coder(16)
     code_flags(alone, np.zeros(n, np.int64), plan.classes)
-    unbacked = alone.state[rangecoder._SPENT] / rangecoder._COST_SCALE
+    unbacked = alone.state[rangecoder.SPENT] / rangecoder.COST_SCALE
     assert spent.sum() < 0.6 * unbacked
     decoder = Coder(coefficients.coefficient_contexts(), coder.finish())
     out = np.ones(n, np.int32)
@@ -208,7 +208,7 @@ def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
     assert sum(p.order.size for p in plans) == size
     assert np.all(spent > 0)
     # The per-coefficient prices add up to the coder's own ledger.
-    assert spent.sum() == pytest.approx(encoder.state[rangecoder._SPENT] / rangecoder._COST_SCALE)
+    assert spent.sum() == pytest.approx(encoder.state[rangecoder.SPENT] / rangecoder.COST_SCALE)
     data = encoder.finish()
     assert 8 * len(data) == pytest.approx(spent.sum(), rel=0.02, abs=64)
     decoder, out = Coder(coefficients.coefficient_contexts(), data), np.zeros(size, np.int32)

@@ -22,7 +22,7 @@ import pytest
 from headerints import leb128, read_integers
 
 import bandelets
-from bandelets.codec import tiles as tiling
+from bandelets.format import container
 from bandelets.format.header import (
     MAX_MEMORY,
     FormatError,
@@ -143,7 +143,7 @@ def test_tiled_file_mutations():
     """Truncations, byte changes anywhere, and tile tables rewritten behind a valid CRC: each
     ends in a return or a ValueError, within the limits and the time of a case."""
     data = TILED.read_bytes()
-    grid, _ = tiling.read(data)
+    grid, _ = container.read(data)
     table_end = 20 + 4 * len(grid.boxes)
     outcomes = collections.Counter(_outcome(data[:n], **SMALL) for n in range(len(data)))
     rng = np.random.default_rng(7)
@@ -247,7 +247,7 @@ def test_encoder_refuses_huge_inputs_without_allocating_them(shape):
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert peak < 2**20 and time.perf_counter() - start < CASE_SECONDS
-    assert encoder_memory(shape[0], shape[1], shape[2] if len(shape) == 3 else 1, tiling.TILE) > MAX_MEMORY
+    assert encoder_memory(shape[0], shape[1], shape[2] if len(shape) == 3 else 1, container.TILE) > MAX_MEMORY
 
 
 def test_encoder_memory_limit_is_overridable():

@@ -21,7 +21,8 @@ from bandelets.search.lagrangian import (
     square_features,
 )
 from bandelets.transform.bandeletize import bandeletize, transform_rows
-from bandelets.transform.bandelets import apply_trees, best_trees, wavelet_coefficients
+from bandelets.transform.bandelets import apply_trees, wavelet_coefficients
+from bandelets.search.basis import best_trees
 from bandelets.transform.geometry import directions
 from bandelets.transform.wavelets import max_levels, subband_slices
 

@@ -9,7 +9,7 @@ import bandelets
 from bandelets import metrics
 from bandelets.codec import encoder, normalmaps
 from bandelets.format.header import unpack
-from bandelets.io.files import from_samples
+from bandelets.format.samples import from_samples
 from bandelets.samples import bevel_normal_map, bump_normal_map
 from bandelets.search import levelchoice
 from bandelets.search.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels, levels_to_try

@@ -11,7 +11,7 @@ import bandelets
 from bandelets.apps.cli import main
 from bandelets.coding import lossless
 from bandelets.format.header import FormatError, pack, unpack
-from bandelets.io.files import from_samples, to_samples
+from bandelets.format.samples import from_samples, to_samples
 from bandelets.samples import crease_normal_map
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.metrics import angular_error, bd_psnr, bits_per_pixel, peak, psnr, unit_vectors, with_z
+from bandelets.metrics import angular_error, bd_psnr, bits_per_pixel, peak, psnr
+from bandelets.transform.normals import unit_vectors, with_z
 
 
 def test_psnr_of_a_uniform_error(rng):
@@ -124,7 +125,7 @@ def test_angular_error_of_xy_maps_rebuilds_z():
 
 @pytest.mark.parametrize("channels", [2, 3])
 def test_unit_normals_are_the_unit_vectors_of_the_decoded_channels(channels, rng):
-    from bandelets.metrics import unit_normals
+    from bandelets.transform.normals import unit_normals
 
     padded = rng.uniform(-1.2, 1.2, (channels, 12, 15))  # some x, y outside the unit disc
     padded[:, 0, 0] = 0.0  # a zero vector (with three channels) turns to +z
@@ -158,8 +159,8 @@ def test_unit_normals_of_a_large_map_in_two_threads_are_the_same_numbers(monkeyp
 
 
 def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
-    from bandelets.codec.normalmaps import equidistant
-    from bandelets.metrics import unit_normals
+    from bandelets.transform.normals import equidistant
+    from bandelets.transform.normals import unit_normals
 
     normals = unit_vectors(rng.normal(size=(9, 11, 3)))  # every way, some below the horizon
     normals[0, 0] = [0.0, 0.0, 1.0]  # the pole, where x, y / |x, y| is undefined

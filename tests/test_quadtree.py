@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bandelets.transform import quadtree
-from bandelets.transform.quadtree import MIN_WIDTH, Quadtree, best_quadtree, flat_quadtree, root_width
+from bandelets.transform.quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
+from bandelets.search.basis import best_quadtree
 
 
 def _two_level_costs():

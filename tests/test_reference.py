@@ -21,7 +21,8 @@ from bandelets.format import quantizer as quantize
 from bandelets.format.header import TRANSFORMS_1D
 from bandelets.search import lagrangian
 from bandelets.transform.bandeletize import bandeletize, debandeletize, debandeletize_bins
-from bandelets.transform.bandelets import best_trees, wavelet_coefficients
+from bandelets.search.basis import best_trees
+from bandelets.transform.bandelets import wavelet_coefficients
 from bandelets.transform.wavelets import max_levels, subband_slices
 
 

@@ -14,7 +14,7 @@ import bandelets
 from bandelets import metrics
 from bandelets.codec import encoder
 from bandelets.format.header import FormatError, pack, unpack
-from bandelets.io.files import from_samples
+from bandelets.format.samples import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
 from bandelets.search import levelchoice, ratecontrol
 from bandelets.transform import riesz

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.io.files import from_samples
+from bandelets.format.samples import from_samples
 from bandelets.samples import (
     bevel_normal_map,
     blurred_edge,

@@ -7,7 +7,7 @@ import pytest
 
 import bandelets
 from bandelets.coding import image as coding
-from bandelets.coding.rangecoder import N_HINTS, SQUARE_START
+from bandelets.coding.coefficients import N_HINTS, SQUARE_START
 from bandelets.coding.order import subband_box, subband_plan
 from bandelets.coding.squarecontexts import square_hints
 from bandelets.format.header import unpack

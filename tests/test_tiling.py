@@ -9,7 +9,7 @@ import pytest
 
 import bandelets
 from bandelets.apps import cli
-from bandelets.codec import tiles as tiling
+from bandelets.format import container
 from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
 from bandelets.format.header import FormatError, unpack
@@ -29,17 +29,17 @@ def tiled_file(normals) -> bytes:
 
 
 def test_cuts_leave_no_thin_tile():
-    assert tiling.cuts(80, 32) == [slice(0, 32), slice(32, 64), slice(64, 80)]
-    assert tiling.cuts(70, 32) == [slice(0, 32), slice(32, 70)]  # 6 pixels left: joined
-    assert tiling.cuts(32, 32) == [slice(0, 32)]
-    assert not tiling.Grid(39, 39, 32).tiled
+    assert container.cuts(80, 32) == [slice(0, 32), slice(32, 64), slice(64, 80)]
+    assert container.cuts(70, 32) == [slice(0, 32), slice(32, 70)]  # 6 pixels left: joined
+    assert container.cuts(32, 32) == [slice(0, 32)]
+    assert not container.Grid(39, 39, 32).tiled
 
 
 def test_a_tiled_file_meets_its_rate_with_one_threshold_everywhere(normals, tiled_file):
-    assert tiling.is_tiled(tiled_file)
+    assert container.is_tiled(tiled_file)
     target = normals.shape[0] * normals.shape[1] / 8
     assert 0.97 * target <= len(tiled_file) <= target
-    grid, tiles = tiling.read(tiled_file)
+    grid, tiles = container.read(tiled_file)
     assert len(grid.boxes) == 9
     assert len({tile()[0].threshold for tile in tiles}) == 1
 
@@ -81,7 +81,7 @@ def test_a_quality_target_holds_for_the_whole_decoded_image(normals):
 def test_an_image_of_one_tile_is_a_plain_file():
     image = np.linspace(0.0, 1.0, 38 * 36).reshape(38, 36)
     data = bandelets.encode(image, threshold=0.01, tile=32)  # 6 rows left: one tile
-    assert not tiling.is_tiled(data)
+    assert not container.is_tiled(data)
     assert data == bandelets.encode(image, threshold=0.01)
     region = bandelets.decode(data, region=(1, 2, 3, 4))
     assert np.array_equal(region, bandelets.decode(data)[1:4, 2:6])
@@ -133,14 +133,14 @@ def test_cli_encodes_decodes_and_describes_a_tiled_file(tmp_path, normals, tiled
 
 def test_by_default_only_what_does_not_fit_in_one_piece_is_tiled():
     assert tile_side(2048, 2048, 3) == 0  # one piece fits the default limit: no seams
-    assert tile_side(4096, 4096, 3) == tiling.TILE
+    assert tile_side(4096, 4096, 3) == container.TILE
     assert tile_side(2048, 2048, 3, tile=300) == 300
     y, x = np.mgrid[0:2000, 0:40] / 50
     image = np.tanh(8 * (x - 0.6 * y - 0.3))
-    assert not tiling.is_tiled(bandelets.encode(image, threshold=0.01))
+    assert not container.is_tiled(bandelets.encode(image, threshold=0.01))
     tight = encoder_memory(2000, 40, 1) - 1  # one piece no longer fits: four tiles of TILE rows
     data = bandelets.encode(image, threshold=0.01, max_memory=tight)
-    assert tiling.is_tiled(data) and len(tiling.read(data)[0].boxes) == 4
+    assert container.is_tiled(data) and len(container.read(data)[0].boxes) == 4
 
 
 def test_the_last_pass_restores_the_tiles_already_coded_to_the_same_file(normals):
@@ -163,7 +163,7 @@ def test_the_restoration_of_all_tiles_together_stays_within_max_work(normals):
 
     budget = 12 * (32 * 32 * 2 + 2**16) * 9  # about 12 iterations of every one of the 9 tiles
     data = bandelets.encode(normals, threshold=0.003, kind="normal-map", tile=32, max_work=budget)
-    grid, tiles = tiling.read(data)
+    grid, tiles = container.read(data)
     work = sum(restoration_work(tile()[0]) for tile in tiles)
     assert 0 < work <= budget
     assert bandelets.decode(data, max_work=work).shape == normals.shape

@@ -24,21 +24,39 @@ _kernelcache.purge_stale_kernels()
 # The codec pulls in numba; it is imported on first use so that the command line starts fast.
 _HOME = {
     "Bandelets": "transform.bandelets",
+    "EncodeOptions": "codec.options",
     "FormatError": "format.header",
+    "Kind": "format.header",
+    "Layout": "format.header",
     "batch": "apps.batch",
+    "check": "codec.decoder",
     "decode": "codec.decoder",
     "encode": "codec.encoder",
-    "forward": "transform.bandelets",
+    "forward": "search.basis",
     "inverse": "transform.bandelets",
 }
-__all__ = ["Bandelets", "FormatError", "batch", "decode", "encode", "forward", "inverse"]
+__all__ = [
+    "Bandelets",
+    "EncodeOptions",
+    "FormatError",
+    "Kind",
+    "Layout",
+    "batch",
+    "check",
+    "decode",
+    "encode",
+    "forward",
+    "inverse",
+]
 
 if TYPE_CHECKING:  # what the lazy loading below gives, for type checkers and IDEs
     from .apps.batch import batch
-    from .codec.decoder import decode
+    from .codec.decoder import check, decode
     from .codec.encoder import encode
-    from .format.header import FormatError
-    from .transform.bandelets import Bandelets, forward, inverse
+    from .codec.options import EncodeOptions
+    from .format.header import FormatError, Kind, Layout
+    from .transform.bandelets import Bandelets, inverse
+    from .search.basis import forward
 
 
 def __getattr__(name: str):

@@ -233,7 +233,7 @@ def bevel_normal_map(
     """
     from scipy import ndimage
 
-    from .io.files import to_samples
+    from .format.samples import to_samples
 
     if size < 16:
         raise ValueError(f"the size must be at least 16, got {size}")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..metrics import unit_vectors
+from ..transform.normals import unit_vectors
 
 __all__ = [
     "ANCHORS",

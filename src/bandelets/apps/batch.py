@@ -39,16 +39,15 @@ import psutil
 from distributed import Client, LocalCluster, as_completed, get_worker
 from tqdm import tqdm
 
-from ..codec.decoder import decode
+from ..codec.decoder import check, decode
 from ..codec.encoder import encode
 from ..format.header import FORMAT_VERSION, KINDS
 from ..format.limits import decoder_memory, encoder_memory, tile_side
-from ..io.files import SUFFIXES, image_shape, read_array, write_atomic
+from ..io.files import MESH_SUFFIXES, SUFFIXES, image_shape, read_array, write_atomic
 from ..metrics import angular_error, bits_per_pixel, psnr
-from ..restore.restoration import CORES
-from .rd import MESH_SUFFIXES
-from .surfaces.codec import decode_mesh, encode_mesh, load_mesh
-from .surfaces.metrics import hausdorff_psnr
+from ..runtime.threads import CORES
+from ..surfaces.codec import decode_mesh, encode_mesh, load_mesh
+from ..surfaces.metrics import hausdorff_psnr
 
 __all__ = [
     "COLUMNS",
@@ -81,7 +80,7 @@ COLUMNS = (
     "seconds",
     "worker",
 )
-#: Inputs read as images; meshes are the suffixes of :data:`bandelets.apps.rd.MESH_SUFFIXES`.
+#: Inputs read as images; meshes are the suffixes of :data:`bandelets.io.files.MESH_SUFFIXES`.
 IMAGE_SUFFIXES = SUFFIXES
 #: The sidecar of finished files in the output folder (JSON lines).
 MANIFEST = ".bandelets-batch.jsonl"
@@ -150,6 +149,7 @@ def compress_file(job: Job) -> dict:
             and previous.get("settings") == row["settings"]
             and output.is_file()
             and output.stat().st_size == previous.get("bytes")
+            and _is_bdl(output)
         ):
             measured = {k: previous.get(k) for k in ("bytes", "bpp", "bpv", "psnr")}
             row |= measured | {k: previous.get(k) for k in ("mean_angle_deg", "p99_angle_deg")}
@@ -165,6 +165,12 @@ def compress_file(job: Job) -> dict:
         row |= {"status": "failed", "error": one_line_error(err)}
     row["seconds"] = time.perf_counter() - start
     return row
+
+
+def _is_bdl(path: Path) -> bool:
+    """Whether the file at ``path`` starts as a .bdl file (:func:`bandelets.codec.decoder.check`)."""
+    with open(path, "rb") as file:
+        return check(file.read(8))
 
 
 def one_line_error(err: BaseException) -> str:

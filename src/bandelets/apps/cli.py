@@ -421,7 +421,7 @@ def _decode(args) -> None:
     _working(args.quiet)
     start = time.perf_counter()
     from ..codec.decoder import decode
-    from ..codec.tiles import header_of
+    from ..format.container import header_of
     from ..io.files import write_array
 
     with _about(args.input):
@@ -457,7 +457,7 @@ def _read_bdl(path: str) -> bytes:
 def _info(args) -> None:
     _check_input(args.input)
     _working()
-    from ..codec.tiles import header_of, is_tiled, read
+    from ..format.container import header_of, is_tiled, read
     from ..format.header import FORMAT_VERSION, unpack
     from ..metrics import bits_per_pixel
 
@@ -530,12 +530,13 @@ def _numbers(text: str, option: str) -> list[float]:
 
 def _rd(args) -> None:
     _working()
+    from ..io.files import MESH_SUFFIXES
     from . import anchors, rd
 
     inputs = args.inputs or (["sample:edge-step", "sample:edge-tangent"] if args.decay else [])
     if not inputs:
         raise ValueError("give at least one INPUT (a PNG, a .npy file or sample:NAME)")
-    meshes = [Path(spec).suffix.lower() in rd.MESH_SUFFIXES for spec in inputs]
+    meshes = [Path(spec).suffix.lower() in MESH_SUFFIXES for spec in inputs]
     if any(meshes) and not all(meshes):
         raise ValueError("give either images or meshes, not both")
     if meshes[0]:
@@ -550,8 +551,8 @@ def _rd(args) -> None:
     sources = [rd.load(spec, args.kind, args.size) for spec in inputs]
     for source in sources:
         if isinstance(source, rd.MeshSource):
-            from .surfaces.geometry_image import mesh_from_image
-            from .surfaces.metrics import hausdorff_psnr
+            from ..surfaces.geometry_image import mesh_from_image
+            from ..surfaces.metrics import hausdorff_psnr
 
             ceilings = [
                 f"{side} x {side}: {hausdorff_psnr(source.mesh, mesh_from_image(source.image(side))):.2f} dB"
@@ -596,7 +597,7 @@ def _mesh_encode(args) -> None:
     _check_output(args.input, args.output, args.force)
     _working()
     from ..io.files import write_atomic
-    from .surfaces.codec import encode_mesh, load_mesh
+    from ..surfaces.codec import encode_mesh, load_mesh
 
     with _about(args.input):  # the mesh's checks name what is wrong, not which file
         data = encode_mesh(
@@ -624,7 +625,7 @@ def _mesh_decode(args) -> None:
         raise _UsageError(f"--vertices must be at least 4 (a closed mesh), got {args.vertices}")
     _working()
     from ..io.files import write_atomic
-    from .surfaces.codec import decode_mesh, mesh_bytes
+    from ..surfaces.codec import decode_mesh, mesh_bytes
 
     with _about(args.input):
         mesh = decode_mesh(_read_bdl(args.input), vertices="full" if args.full else args.vertices)
@@ -645,7 +646,7 @@ def _geometry_image(args) -> None:
         raise ValueError(f"{args.normals}: --normals would overwrite the positions output")
     _working()
     from ..io.files import write_array
-    from .surfaces.codec import check_size, load_mesh, map_to_sphere, sample_geometry_image
+    from ..surfaces.codec import check_size, load_mesh, map_to_sphere, sample_geometry_image
 
     check_size(args.size)  # before the slow parameterization
     with _about(args.input):
@@ -662,7 +663,7 @@ def _geometry_image(args) -> None:
                 Path(args.output).unlink(missing_ok=True)
             raise
     if args.report:
-        from .surfaces.report import parameterization_report
+        from ..surfaces.report import parameterization_report
 
         r = parameterization_report(mesh, spherical, args.size)
         print(

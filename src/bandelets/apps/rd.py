@@ -37,8 +37,9 @@ from tqdm import tqdm
 from .. import samples
 from ..codec.decoder import decode
 from ..codec.encoder import encode
-from ..codec.options import check_image
-from ..io.files import from_samples, read_array, write_atomic
+from ..format.checks import check_image
+from ..format.samples import from_samples
+from ..io.files import MESH_SUFFIXES, read_array, write_atomic
 from ..metrics import angular_error, bd_psnr, bits_per_pixel, psnr
 from . import anchors
 from .plots import rate_key, rd_figure
@@ -46,7 +47,7 @@ from .plots import rate_key, rd_figure
 __all__ = [
     "CODECS",
     "MESH_CODECS",
-    "MESH_SUFFIXES",
+
     "SAMPLES",
     "MeshSource",
     "Source",
@@ -65,8 +66,6 @@ CODECS = ("bandelet", "wavelet", *anchors.ANCHORS)
 #: Codecs of mesh inputs: bandelets and wavelets on the geometry image, Draco on the mesh.
 MESH_CODECS = ("bandelet", "wavelet", "draco")
 
-#: File suffixes read as meshes (through trimesh).
-MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 
 #: Generated inputs, ``sample:NAME[@SIZE]``: the generator of each and the kind it is.
 SAMPLES = {
@@ -112,14 +111,14 @@ class MeshSource:
 
     def side(self, rate: float) -> int:
         """Side of the geometry image coded at ``rate`` bits per vertex."""
-        from .surfaces.codec import auto_size
+        from ..surfaces.codec import auto_size
 
         return self.size or auto_size(rate * len(self.mesh.vertices))
 
     def image(self, side: int) -> np.ndarray:
         """The ``side x side`` geometry image (positions), sampled once."""
         if side not in self.images:
-            from .surfaces.codec import sample_geometry_image
+            from ..surfaces.codec import sample_geometry_image
 
             self.images[side] = sample_geometry_image(self.spherical, side).positions
         return self.images[side]
@@ -138,7 +137,7 @@ def load(spec: str, kind: str = "image", size: int | None = None) -> Source | Me
         Unknown sample, bad size, an unreadable file or one the codec cannot take.
     """
     if Path(spec).suffix.lower() in MESH_SUFFIXES:
-        from .surfaces.codec import check_size, load_mesh, map_to_sphere
+        from ..surfaces.codec import check_size, load_mesh, map_to_sphere
 
         mesh = load_mesh(spec)
         start = time.perf_counter()
@@ -197,7 +196,7 @@ def _encode_mesh(source: MeshSource, codec: str, rate: float) -> bytes:
         from ..surfaces import draco
 
         return draco.encode(source.mesh, rate * len(source.mesh.vertices) / 8)
-    from .surfaces.codec import encode_mesh
+    from ..surfaces.codec import encode_mesh
 
     return encode_mesh(
         source.mesh, image=source.image(source.side(rate)), bits_per_vertex=rate, transform=codec
@@ -209,7 +208,7 @@ def _decode_mesh(codec: str, data: bytes):
         from ..surfaces import draco
 
         return draco.decode(data)
-    from .surfaces.codec import decode_mesh
+    from ..surfaces.codec import decode_mesh
 
     return decode_mesh(data)
 
@@ -229,7 +228,7 @@ def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -
     decoded = _decode_mesh(codec, written) if meshes else _decode(source, codec, written)
     decode_s = time.perf_counter() - start
     if meshes:
-        from .surfaces.metrics import hausdorff_psnr
+        from ..surfaces.metrics import hausdorff_psnr
 
         rate_value = 8 * len(written) / len(source.mesh.vertices)
         quality = hausdorff_psnr(source.mesh, decoded)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..format.header import LOSSLESS
-from ..io.files import as_read
+from ..format.samples import as_read
 from ..metrics import angular_error, bits_per_pixel
 
 __all__ = ["decode_summary", "encode_summary", "lengths_note"]

@@ -16,7 +16,7 @@ from ..runtime.threads import CORES, thread_map, workers
 from ..transform.normals import unit_normals
 from ..coding import lossless, rangecoder
 from ..coding.image import code_image, code_lifting, new_coders
-from ..format.header import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack, padded_shape
+from ..format.header import FORMAT_VERSION, LOSSLESS, MAGIC, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack, padded_shape
 from ..format.container import WORKERS, check_region, is_tiled, output_of, read
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
@@ -27,6 +27,7 @@ from ..transform.bandelets import apply_trees
 from ..transform.wavelets import wavedec, waverec
 
 __all__ = [
+    "check",
     "decode",
     "decode_parsed",
     "decoded_bins",
@@ -111,6 +112,22 @@ def decode(
     top, left, rows, cols = check_region(region, header.height, header.width)
     image = decode_parsed(header, streams, restore=restore, max_memory=max_memory, max_work=max_work)
     return image[top : top + rows, left : left + cols] if region is not None else image
+
+
+def check(data: bytes) -> bool:
+    """Whether ``data`` starts like a .bdl file this decoder reads (its magic and format version), as
+    imagecodecs' ``*_check`` functions say whether bytes are of their codec: nothing is decoded, so
+    a file that checks may still be refused by :func:`decode`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bandelets import encode
+    >>> check(encode(np.zeros((8, 8)), threshold=0.1)), check(b"\\x89PNG\\r\\n")
+    (True, False)
+    """
+    head = bytes(memoryview(data)[:5])
+    return len(head) == 5 and head[:4] == MAGIC and head[4] == FORMAT_VERSION
 
 
 def decode_parsed(

@@ -30,15 +30,7 @@ from ..format.checks import check_options
 from ..transform.wavelets import check_extension
 from ..format.container import MIN_TILE
 
-__all__ = [
-    "AUTO_WAVELET",
-    "EncodeOptions",
-    "check_image",
-    "check_options",
-    "check_targets",
-    "check_threshold",
-    "geometry_options",
-]
+__all__ = ["AUTO_WAVELET", "EncodeOptions", "geometry_options"]
 
 #: The ``wavelet`` that lets the encoder choose, per image and target, among
 #: :data:`bandelets.codec.encoder.AUTO_CANDIDATES`.

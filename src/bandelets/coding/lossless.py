@@ -341,8 +341,8 @@ def _unit_pays(samples: np.ndarray, depth: int) -> bool:
     """Whether the third channel of ``samples`` (H, W, 3) is closer to the ``z`` of unit vectors
     made from the first two (:func:`_unit_z`) than to its left neighbour, summed over the image:
     a normal map whose blue is ``z``, not something else (ambient occlusion)."""
-    from ..io.files import from_samples, to_samples
-    from ..metrics import with_z
+    from ..format.samples import from_samples, to_samples
+    from ..transform.normals import with_z
 
     blue = samples[..., 2].astype(np.int64)
     z = to_samples(with_z(from_samples(samples[..., :2], "normal-map", depth)), "normal-map", depth)[..., 2]
@@ -410,7 +410,7 @@ def samples_of(array, kind: str, depth: int) -> tuple[np.ndarray, int] | None:
     samples. ``ValueError`` for an array that no encoding takes (its shape, a normal map's
     integer type).
     """
-    from ..io.files import from_samples, integer_samples, to_samples
+    from ..format.samples import from_samples, integer_samples, to_samples
 
     array = np.asarray(array)
     given = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(array.dtype)
@@ -461,7 +461,7 @@ def encode_file(samples: np.ndarray, kind: str, depth: int, budget: int | None =
 def decode_file(header: Header, stream: bytes) -> np.ndarray:
     """What :func:`bandelets.decode` returns for a lossless file: the values of its samples
     (:func:`bandelets.io.files.from_samples`), (H, W) or (H, W, C)."""
-    from ..io.files import from_samples
+    from ..format.samples import from_samples
 
     samples = decode_samples(stream, header.height, header.width, header.channels, header.depth)
     values = from_samples(samples, header.kind, header.depth)

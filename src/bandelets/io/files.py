@@ -23,6 +23,7 @@ from ..format.samples import as_read, from_samples, integer_samples, to_samples
 from .floatformats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
 
 __all__ = [
+    "MESH_SUFFIXES",
     "SUFFIXES",
     "as_read",
     "check_suffix",
@@ -39,6 +40,8 @@ __all__ = [
 
 #: Suffixes of the files read and written: PNG (8 or 16-bit), .npy, OpenEXR, TIFF (8, 16-bit, float).
 SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff")
+#: File suffixes read as meshes (through trimesh).
+MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 # Lossy 8-bit formats: their artefacts would be coded as detail.
 _REFUSED = {".jpg": "JPEG", ".jpeg": "JPEG", ".webp": "WebP"}
 
@@ -220,7 +223,7 @@ def write_array(path: str | os.PathLike, array: np.ndarray, kind: str, depth: in
         import imagecodecs
 
         if kind == "normal-map" and array.ndim == 3 and array.shape[2] == 2:
-            from ..metrics import with_z  # here: metrics loads numba, which checking a name must not
+            from ..transform.normals import with_z
 
             array = with_z(array)
         write_atomic(path, imagecodecs.png_encode(to_samples(array, kind, depth or 16)))

@@ -27,8 +27,8 @@ from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 
 from ..codec.decoder import decode
 from ..codec.encoder import encode
-from ..codec.tiles import header_of
-from ..format.header import MAGIC
+from ..format.container import header_of
+from ..codec.decoder import check
 
 __all__ = ["BandeletsPlugin", "register"]
 
@@ -41,7 +41,7 @@ class BandeletsPlugin(PluginV3):
         self._data = b""
         if request.mode.io_mode == "r":
             self._data = request.get_file().read()
-            if not self._data.startswith(MAGIC):
+            if not check(self._data):
                 raise InitializationError("not a .bdl file")
         elif (request.extension or request.format_hint) != ".bdl":
             raise InitializationError("bandelets writes .bdl files only")

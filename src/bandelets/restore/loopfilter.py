@@ -71,7 +71,7 @@ from ..format.header import (
     filter_taps,
     filter_width,
 )
-from .restoration import CORES
+from ..runtime.threads import CORES
 
 __all__ = [
     "SHAPES",
