@@ -32,15 +32,16 @@ from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
 from bandelets.coding.image import code_image, new_coders
 from bandelets.coding.order import subband_plan
-from bandelets.format.header import TRANSFORMS_1D, Header
+from bandelets.format.fields import TRANSFORMS_1D
+from bandelets.format.header import Header
 from bandelets.format.quantizer import quantize
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
-from bandelets.transform.normals import unit_vectors
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.search.basis import best_trees
 from bandelets.transform.bandeletize import bandeletize, transform_rows
 from bandelets.transform.bandelets import apply_trees, wavelet_coefficients
-from bandelets.search.basis import best_trees
 from bandelets.transform.geometry import directions
+from bandelets.transform.normals import unit_vectors
 from bandelets.transform.wavelets import max_levels, subband_slices
 
 RATES = (0.25, 0.5, 1.0, 2.0)

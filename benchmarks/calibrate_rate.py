@@ -34,10 +34,10 @@ from bandelets.coding.image import code_image, new_coders
 from bandelets.format.header import Header
 from bandelets.format.quantizer import quantize
 from bandelets.samples import crease_normal_map
+from bandelets.search.basis import best_trees
 from bandelets.search.lagrangian import RATE_MODEL, square_features
 from bandelets.transform.bandeletize import bandeletize
 from bandelets.transform.bandelets import apply_trees, wavelet_coefficients
-from bandelets.search.basis import best_trees
 from bandelets.transform.geometry import zigzag
 from bandelets.transform.wavelets import max_levels, subband_slices
 

@@ -6,7 +6,8 @@ encoder with and without the directions, on the generated crease normal map.
 Prints the process CPU time (median of ``--repeat``; all threads) of an analysis and of a
 synthesis of the map's two channels (x, y) over 6 levels, lifted along the directions
 :func:`bandelets.transform.directional.analysis` chooses at ``--threshold`` and plain
-(:func:`bandelets.transform.wavelets.wavedec`, :func:`bandelets.transform.wavelets.waverec`), of that direction
+(:func:`bandelets.transform.wavelets.wavedec`, :func:`bandelets.transform.wavelets.waverec`), of that
+direction
 search, of the check that the directions pay (:func:`bandelets.transform.directional.pays`), then the CPU
 time of ``bandelets.encode(map, bpp=1, kind="normal-map")`` and of its decode with
 ``lifting=False`` and by default, with OpenJPEG's encode of the same map in the same run.

@@ -22,8 +22,8 @@ import bandelets
 from bandelets.apps import anchors
 from bandelets.io.files import read_array
 from bandelets.metrics import bits_per_pixel, psnr
-from bandelets.transform.normals import unit_vectors
 from bandelets.samples import crease_normal_map
+from bandelets.transform.normals import unit_vectors
 from bandelets.transform.wavelets import max_levels, subband_slices, wavedec
 
 

@@ -30,8 +30,8 @@ import numpy as np
 import bandelets
 from bandelets.format.header import unpack
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
-from bandelets.transform.normals import unit_vectors
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.transform.normals import unit_vectors
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rd_normal_maps import load  # noqa: E402

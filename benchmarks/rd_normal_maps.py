@@ -66,8 +66,8 @@ from bandelets.format.header import unpack
 from bandelets.format.samples import from_samples
 from bandelets.io.files import write_atomic
 from bandelets.metrics import bd_psnr, bits_per_pixel, psnr
-from bandelets.transform.normals import unit_vectors
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
+from bandelets.transform.normals import unit_vectors
 
 HERE = Path(__file__).resolve().parent
 RATES = (0.25, 0.35, 0.5, 0.71, 1.0, 1.41, 2.0)

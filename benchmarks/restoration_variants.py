@@ -28,7 +28,8 @@ import bandelets
 from bandelets import metrics
 from bandelets.codec import encoder
 from bandelets.codec.decoder import decoded_bins, restorations
-from bandelets.format.header import FORMAT_VERSION, unpack
+from bandelets.format.fields import FORMAT_VERSION
+from bandelets.format.header import unpack
 from bandelets.restore import restoration
 from bandelets.samples import crease_normal_map
 

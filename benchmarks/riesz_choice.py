@@ -1,4 +1,5 @@
-"""How the encoder's choice of the Riesz pair (:mod:`bandelets.transform.riesz`) does, map by map and rate by rate.
+"""How the encoder's choice of the Riesz pair (:mod:`bandelets.transform.riesz`) does, map by map and rate
+by rate.
 
     python benchmarks/riesz_choice.py [--maps bevel@256 crease@256 ...] [--rates 0.25,0.5,1,2]
 

@@ -20,7 +20,8 @@ import imagecodecs
 import numpy as np
 
 import bandelets
-from bandelets.format.header import MAX_RESTORATION, MAX_WORK, pack, unpack
+from bandelets.format.fields import MAX_RESTORATION, MAX_WORK
+from bandelets.format.header import pack, unpack
 from bandelets.format.limits import restoration_work
 
 

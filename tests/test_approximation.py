@@ -7,8 +7,8 @@ import pytest
 
 from bandelets.coding import coefficients
 from bandelets.coding.approximation import N_CONTEXTS, code_approximation
-from bandelets.coding.rangecoder import Coder, CorruptStream
 from bandelets.coding.order import approximation_plan
+from bandelets.coding.rangecoder import Coder, CorruptStream
 
 SHAPE, LEVELS = (128, 96), 2  # an approximation of 32 x 24 bins
 

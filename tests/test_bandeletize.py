@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bandelets.format.header import TRANSFORMS_1D
+from bandelets.format.fields import TRANSFORMS_1D
+from bandelets.search.basis import best_quadtree
 from bandelets.transform.bandeletize import bandeletize, debandeletize, transform_rows
 from bandelets.transform.geometry import directions, zigzag
-from bandelets.search.basis import best_quadtree
 
 
 @pytest.mark.parametrize("kind", TRANSFORMS_1D)

@@ -16,9 +16,8 @@ from headerints import leb128, read_integers
 
 import bandelets
 from bandelets.codec.options import EncodeOptions
-from bandelets.format.header import (
+from bandelets.format.fields import (
     FORMAT_VERSION,
-    HEADER_BYTES,
     KINDS,
     MAGIC,
     MAX_THRESHOLD,
@@ -27,15 +26,11 @@ from bandelets.format.header import (
     TRANSFORMS_1D,
     WAVELETS,
     FormatError,
-    Header,
     Kind,
     Transform1D,
     Wavelet,
-    implied_options,
-    pack,
-    streams_offset,
-    unpack,
 )
+from bandelets.format.header import HEADER_BYTES, Header, implied_options, pack, streams_offset, unpack
 
 FIXED_SIZE = 14  # fixed fields, before the five LEB128 integers (sides, stream lengths)
 GEOMETRY_SIZE = 5  # options of a geometry image, before its LEB128 vertex count

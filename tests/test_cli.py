@@ -25,9 +25,9 @@ from bandelets.apps import cli, show
 from bandelets.apps.cli import main
 from bandelets.codec import decoder
 from bandelets.format.header import pack, unpack
+from bandelets.format.samples import from_samples, to_samples
 from bandelets.io import files
 from bandelets.io.files import SUFFIXES
-from bandelets.format.samples import from_samples, to_samples
 from bandelets.io.floatformats import read_exr, read_tiff, write_exr, write_tiff
 from bandelets.metrics import angular_error, psnr
 from bandelets.runtime import compilation

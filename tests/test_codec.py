@@ -1,4 +1,5 @@
-"""The bandelet transform end to end, and .bdl encode / decode (bandelets.transform.bandelets, .encoder, .decoder)."""
+"""The bandelet transform end to end, and .bdl encode / decode (bandelets.transform.bandelets, .encoder,
+.decoder)."""
 
 from __future__ import annotations
 
@@ -12,10 +13,10 @@ import bandelets
 from bandelets import metrics
 from bandelets.codec import encoder
 from bandelets.codec.options import EncodeOptions
-from bandelets.format.header import WAVELETS, unpack
+from bandelets.format.fields import WAVELETS, padded_shape
+from bandelets.format.header import unpack
 from bandelets.format.samples import as_read, from_samples, to_samples
 from bandelets.search.lagrangian import LAMBDA
-from bandelets.format.header import padded_shape
 from bandelets.transform.wavelets import subband_slices
 
 

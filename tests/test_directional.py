@@ -10,7 +10,8 @@ from conftest import straight_edge
 
 import bandelets
 from bandelets.coding import rangecoder
-from bandelets.format.header import FormatError, pack, unpack
+from bandelets.format.fields import FormatError
+from bandelets.format.header import pack, unpack
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.transform import directional, lifting

@@ -183,7 +183,9 @@ def test_rarely_used_contexts_learn_from_their_family():
     assert spent.sum() < 0.6 * unbacked
     decoder = Coder(coefficients.coefficient_contexts(), coder.finish())
     out = np.ones(n, np.int32)
-    coefficients.code_coefficients(decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n))
+    coefficients.code_coefficients(
+        decoder, out, plan, np.zeros(n, np.int64), np.zeros(0, np.int32), np.zeros(n)
+    )
     np.testing.assert_array_equal(out, q)
 
 
@@ -202,7 +204,11 @@ def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
     guide = rng.integers(-3, 4, size).astype(np.int32)
     q = np.where(rng.random(size) < 0.6, 0, rng.integers(-40, 41, size)).astype(np.int32)
     q[plans[0].order] = rng.integers(-2000, 2000, plans[0].order.size)
-    encoder, known, spent = Coder(coefficients.coefficient_contexts()), np.zeros(size, np.int64), np.zeros(size)
+    encoder, known, spent = (
+        Coder(coefficients.coefficient_contexts()),
+        np.zeros(size, np.int64),
+        np.zeros(size),
+    )
     for plan in plans:
         coefficients.code_coefficients(encoder, q, plan, known, guide, spent)
     assert sum(p.order.size for p in plans) == size
@@ -218,7 +224,12 @@ def test_coefficients_round_trip_and_the_encoder_prices_each_one(rng):
     np.testing.assert_array_equal(out, q)
     decoder.check()
     # Cut short, the same stream is refused (the decoder counts the bytes it reads past the end).
-    decoder, known = Coder(coefficients.coefficient_contexts(), data[: len(data) // 2]), np.zeros(size, np.int64)
+    decoder, known = (
+        Coder(coefficients.coefficient_contexts(), data[: len(data) // 2]),
+        np.zeros(size, np.int64),
+    )
     with pytest.raises(CorruptStream):
         for plan in plans:
-            coefficients.code_coefficients(decoder, np.zeros(size, np.int32), plan, known, guide, np.zeros(size))
+            coefficients.code_coefficients(
+                decoder, np.zeros(size, np.int32), plan, known, guide, np.zeros(size)
+            )

@@ -9,7 +9,8 @@ import bandelets
 from bandelets import metrics
 from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
-from bandelets.format.header import NORMAL_MAP_WEIGHT, unpack
+from bandelets.format.fields import NORMAL_MAP_WEIGHT
+from bandelets.format.header import unpack
 from bandelets.surfaces import octahedral
 from bandelets.transform import frames
 from bandelets.transform.wavelets import wavedec

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 import bandelets
-from bandelets.format.header import FORMAT_VERSION, FormatError
+from bandelets.format.fields import FORMAT_VERSION, FormatError
 
 DATA = Path(__file__).resolve().parent / "data"
 GOLDEN = json.loads((DATA / "golden.json").read_text())

@@ -23,15 +23,8 @@ from headerints import leb128, read_integers
 
 import bandelets
 from bandelets.format import container
-from bandelets.format.header import (
-    MAX_MEMORY,
-    FormatError,
-    Header,
-    implied_options,
-    pack,
-    streams_offset,
-    unpack,
-)
+from bandelets.format.fields import MAX_MEMORY, FormatError
+from bandelets.format.header import Header, implied_options, pack, streams_offset, unpack
 from bandelets.format.limits import decoder_memory, encoder_memory
 from bandelets.samples import crease_normal_map
 

@@ -12,6 +12,7 @@ import bandelets
 from bandelets.coding.image import code_image, new_coders
 from bandelets.format.header import Header
 from bandelets.format.quantizer import dequantize, quantize
+from bandelets.search.basis import best_trees
 from bandelets.search.lagrangian import (
     LAMBDA,
     RATE_MODEL,
@@ -22,7 +23,6 @@ from bandelets.search.lagrangian import (
 )
 from bandelets.transform.bandeletize import bandeletize, transform_rows
 from bandelets.transform.bandelets import apply_trees, wavelet_coefficients
-from bandelets.search.basis import best_trees
 from bandelets.transform.geometry import directions
 from bandelets.transform.wavelets import max_levels, subband_slices
 

@@ -1,4 +1,5 @@
-"""The encoder's choice of the count of wavelet levels (bandelets.search.levelchoice, wavelets.coarse_blocks)."""
+"""The encoder's choice of the count of wavelet levels (bandelets.search.levelchoice,
+wavelets.coarse_blocks)."""
 
 from __future__ import annotations
 

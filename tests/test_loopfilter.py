@@ -14,19 +14,9 @@ import bandelets
 from bandelets.codec.decoder import decode_parsed
 from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
-from bandelets.format.header import (
-    MAX_FILTER_CLIP,
-    MAX_FILTER_SHIFT,
-    MAX_FILTER_WIDTH,
-    FormatError,
-    Header,
-    LoopFilter,
-    filter_cross_offsets,
-    filter_offsets,
-    filter_taps,
-    pack,
-    unpack,
-)
+from bandelets.format.fields import MAX_FILTER_CLIP, MAX_FILTER_SHIFT, MAX_FILTER_WIDTH, FormatError
+from bandelets.format.filter import LoopFilter, filter_cross_offsets, filter_offsets, filter_taps
+from bandelets.format.header import Header, pack, unpack
 from bandelets.metrics import psnr
 from bandelets.restore import loopfilter
 from bandelets.samples import bump_normal_map, crease_normal_map

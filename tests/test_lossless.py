@@ -10,7 +10,8 @@ import pytest
 import bandelets
 from bandelets.apps.cli import main
 from bandelets.coding import lossless
-from bandelets.format.header import FormatError, pack, unpack
+from bandelets.format.fields import FormatError
+from bandelets.format.header import pack, unpack
 from bandelets.format.samples import from_samples, to_samples
 from bandelets.samples import crease_normal_map
 

@@ -159,8 +159,7 @@ def test_unit_normals_of_a_large_map_in_two_threads_are_the_same_numbers(monkeyp
 
 
 def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
-    from bandelets.transform.normals import equidistant
-    from bandelets.transform.normals import unit_normals
+    from bandelets.transform.normals import equidistant, unit_normals
 
     normals = unit_vectors(rng.normal(size=(9, 11, 3)))  # every way, some below the horizon
     normals[0, 0] = [0.0, 0.0, 1.0]  # the pole, where x, y / |x, y| is undefined

@@ -9,10 +9,10 @@ import pytest
 
 import bandelets
 from bandelets import metrics
-from bandelets.transform.normals import octahedral
 from bandelets.format.header import pack, unpack
 from bandelets.samples import bevel_normal_map, bump_normal_map, crease_normal_map
 from bandelets.surfaces.octahedral import grid, square_to_sphere
+from bandelets.transform.normals import octahedral
 
 
 def ellipsoid_normals(size: int) -> np.ndarray:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bandelets.search.basis import best_quadtree
 from bandelets.transform import quadtree
 from bandelets.transform.quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
-from bandelets.search.basis import best_quadtree
 
 
 def _two_level_costs():

@@ -18,10 +18,10 @@ import bandelets
 from bandelets.coding import order as layout
 from bandelets.coding.image import code_image, new_coders
 from bandelets.format import quantizer as quantize
-from bandelets.format.header import TRANSFORMS_1D
+from bandelets.format.fields import TRANSFORMS_1D
 from bandelets.search import lagrangian
-from bandelets.transform.bandeletize import bandeletize, debandeletize, debandeletize_bins
 from bandelets.search.basis import best_trees
+from bandelets.transform.bandeletize import bandeletize, debandeletize, debandeletize_bins
 from bandelets.transform.bandelets import wavelet_coefficients
 from bandelets.transform.wavelets import max_levels, subband_slices
 

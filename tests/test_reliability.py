@@ -19,7 +19,8 @@ import trimesh
 
 import bandelets
 from bandelets.apps import cli
-from bandelets.format.header import MAX_THRESHOLD, MAX_WORK, MIN_THRESHOLD, FormatError, Header, pack, unpack
+from bandelets.format.fields import MAX_THRESHOLD, MAX_WORK, MIN_THRESHOLD, FormatError
+from bandelets.format.header import Header, pack, unpack
 from bandelets.format.limits import restoration_work
 from bandelets.io import files
 from bandelets.io.files import read_array

@@ -13,7 +13,8 @@ import pytest
 import bandelets
 from bandelets import metrics
 from bandelets.codec import encoder
-from bandelets.format.header import FormatError, pack, unpack
+from bandelets.format.fields import FormatError
+from bandelets.format.header import pack, unpack
 from bandelets.format.samples import from_samples
 from bandelets.samples import bevel_normal_map, crease_normal_map
 from bandelets.search import levelchoice, ratecontrol

@@ -9,10 +9,11 @@ import pytest
 
 import bandelets
 from bandelets.apps import cli
-from bandelets.format import container
 from bandelets.codec.encoder import encode_with_stats
 from bandelets.codec.options import EncodeOptions
-from bandelets.format.header import FormatError, unpack
+from bandelets.format import container
+from bandelets.format.fields import FormatError
+from bandelets.format.header import unpack
 from bandelets.format.limits import check_encodable, encoder_memory, tile_side
 from bandelets.metrics import angular_error, psnr
 from bandelets.samples import crease_normal_map

@@ -7,8 +7,8 @@ import pytest
 import pywt
 import reference
 
+from bandelets.format.fields import padded_shape
 from bandelets.transform.wavelets import max_levels, subband_slices, wavedec, waverec
-from bandelets.format.header import padded_shape
 
 # Non-square; the coarsest subband keeps >= 8 samples a side (as the codec does), so that
 # PyWavelets does not warn about boundary effects with db4.

@@ -54,9 +54,9 @@ if TYPE_CHECKING:  # what the lazy loading below gives, for type checkers and ID
     from .codec.decoder import check, decode
     from .codec.encoder import encode
     from .codec.options import EncodeOptions
-    from .format.header import FormatError, Kind, Layout
-    from .transform.bandelets import Bandelets, inverse
+    from .format.fields import FormatError, Kind, Layout
     from .search.basis import forward
+    from .transform.bandelets import Bandelets, inverse
 
 
 def __getattr__(name: str):

@@ -164,7 +164,7 @@ def build() -> dict:
 
 
 def main(argv: list[str]) -> int:
-    from bandelets.format.header import FORMAT_VERSION
+    from bandelets.format.fields import FORMAT_VERSION
 
     entries = build()
     table = {

@@ -56,7 +56,8 @@ _import_compiled_modules()
 with atheris.instrument_imports(include=["bandelets"]):
     import bandelets
     import bandelets.codec.encoder  # imported lazily by the package: import it here to instrument it
-    from bandelets.format.header import KIND_CODES, MAX_LEVELS, WAVELETS, FormatError, streams_offset, unpack
+    from bandelets.format.fields import KIND_CODES, MAX_LEVELS, WAVELETS, FormatError
+    from bandelets.format.header import streams_offset, unpack
     from bandelets.transform.wavelets import subband_norms
 
 LIMITS = {"max_side": 256, "max_samples": 2**16, "max_memory": 32 * 2**20, "max_work": 2**20}

@@ -41,7 +41,7 @@ from tqdm import tqdm
 
 from ..codec.decoder import check, decode
 from ..codec.encoder import encode
-from ..format.header import FORMAT_VERSION, KINDS
+from ..format.fields import FORMAT_VERSION, KINDS
 from ..format.limits import decoder_memory, encoder_memory, tile_side
 from ..io.files import MESH_SUFFIXES, SUFFIXES, image_shape, read_array, write_atomic
 from ..metrics import angular_error, bits_per_pixel, psnr

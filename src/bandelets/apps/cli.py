@@ -19,7 +19,7 @@ import time
 import warnings
 from pathlib import Path
 
-from ..format.header import (
+from ..format.fields import (
     DEFAULT_NORMAL_WEIGHT,
     DEFAULT_TRANSFORM_1D,
     DEFAULT_WAVELET,
@@ -458,7 +458,8 @@ def _info(args) -> None:
     _check_input(args.input)
     _working()
     from ..format.container import header_of, is_tiled, read
-    from ..format.header import FORMAT_VERSION, unpack
+    from ..format.fields import FORMAT_VERSION
+    from ..format.header import unpack
     from ..metrics import bits_per_pixel
 
     data = _read_bdl(args.input)

@@ -47,7 +47,6 @@ from .plots import rate_key, rd_figure
 __all__ = [
     "CODECS",
     "MESH_CODECS",
-
     "SAMPLES",
     "MeshSource",
     "Source",

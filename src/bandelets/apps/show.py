@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..coding.image import code_image, new_coders
-from ..format.header import LOSSLESS, Header, unpack, padded_shape
+from ..format.fields import LOSSLESS, padded_shape
+from ..format.header import Header, unpack
 from ..format.quantizer import dequantize
 from ..transform.bandeletize import debandeletize
 from ..transform.geometry import directions

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..format.header import LOSSLESS
+from ..format.fields import LOSSLESS
 from ..format.samples import as_read
 from ..metrics import angular_error, bits_per_pixel
 

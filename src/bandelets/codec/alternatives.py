@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..format.header import MAX_THRESHOLD
+from ..format.fields import MAX_THRESHOLD
 from ..search import directions
 from ..search.levelchoice import choose_levels
 from ..transform import riesz
@@ -130,7 +130,8 @@ def riesz_pair(
     options: EncodeOptions,
     choose: bool,
 ) -> tuple[int, list, int, float]:
-    """The Riesz sign and the pair's coefficients of the channels ``coded`` (:func:`bandelets.transform.riesz.oriented`,
+    """The Riesz sign and the pair's coefficients of the channels ``coded``
+    (:func:`bandelets.transform.riesz.oriented`,
     padded), its wavelet levels, and the ratio of their :func:`bandelets.search.directions.cost` at
     ``threshold`` over that of the channels' ``coefficients`` (``levels`` levels, ``lifted`` of them
     lifted with the directions ``lifting``, if any); 0 with ``options.riesz``. With ``choose``, the

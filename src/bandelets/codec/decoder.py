@@ -11,19 +11,20 @@ from itertools import islice
 
 import numpy as np
 
-from ..runtime.progress import Progress
-from ..runtime.threads import CORES, thread_map, workers
-from ..transform.normals import unit_normals
 from ..coding import lossless, rangecoder
 from ..coding.image import code_image, code_lifting, new_coders
-from ..format.header import FORMAT_VERSION, LOSSLESS, MAGIC, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack, padded_shape
 from ..format.container import WORKERS, check_region, is_tiled, output_of, read
+from ..format.fields import FORMAT_VERSION, LOSSLESS, MAGIC, MAX_MEMORY, MAX_WORK, FormatError, padded_shape
+from ..format.header import Header, unpack
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
+from ..runtime.progress import Progress
+from ..runtime.threads import CORES, thread_map, workers
 from ..transform import directional, frames, riesz
 from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
+from ..transform.normals import unit_normals
 from ..transform.wavelets import wavedec, waverec
 
 __all__ = [
@@ -176,7 +177,8 @@ def decoded_bins(
 
 
 def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
-    """The channels after 0, 1, 2, ... restoration iterations (:func:`bandelets.restore.restoration.iterate`)."""
+    """The channels after 0, 1, 2, ... restoration iterations
+    (:func:`bandelets.restore.restoration.iterate`)."""
     unit = header.kind == "normal-map" and header.channels == 3
     return restoration.iterate(
         quantized,
@@ -341,5 +343,3 @@ def _decode_tiles(
 
 def _shift(span: slice, by: int) -> slice:
     return slice(span.start - by, span.stop - by)
-
-

@@ -14,8 +14,8 @@ import numpy as np
 
 from ..coding import lossless
 from ..format.checks import check_image, check_targets
-from ..format.limits import OWN_FILE, check_encodable
 from ..format.header import unpack
+from ..format.limits import OWN_FILE, check_encodable
 from ..format.samples import to_samples
 from ..search.lagrangian import LAMBDA
 from . import normalmaps, tile_encoder

@@ -54,5 +54,3 @@ def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]
     if channels == 2 or xy:
         return with_z(np.asarray(values[..., :2], np.float64)), depth, "xy" if channels == 2 else "rg"
     return values, depth, "xyz"
-
-

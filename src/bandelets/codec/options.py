@@ -12,7 +12,9 @@ from typing import Literal
 
 import numpy as np
 
-from ..format.header import (
+from ..format.checks import check_options
+from ..format.container import MIN_TILE
+from ..format.fields import (
     DEFAULT_NORMAL_WEIGHT,
     DEFAULT_TRANSFORM_1D,
     DEFAULT_WAVELET,
@@ -26,9 +28,7 @@ from ..format.header import (
     Transform1D,
     Wavelet,
 )
-from ..format.checks import check_options
 from ..transform.wavelets import check_extension
-from ..format.container import MIN_TILE
 
 __all__ = ["AUTO_WAVELET", "EncodeOptions", "geometry_options"]
 

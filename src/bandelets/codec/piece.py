@@ -22,7 +22,8 @@ from functools import partial
 import numpy as np
 
 from .. import metrics
-from ..format.header import HEADER_BYTES, MAX_THRESHOLD, MIN_THRESHOLD, Header, pack, unpack
+from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD
+from ..format.header import HEADER_BYTES, Header, pack, unpack
 from ..format.limits import OWN_FILE
 from ..format.samples import as_read
 from ..restore import loopfilter
@@ -395,4 +396,3 @@ def _read_back(encoded: Encoded) -> Encoded:
     header = replace(header, loop_filter=None)
     data = pack(header, streams)
     return replace(encoded, data=data, header=header, trees=trees, bins=bins, lifting=lifting)
-

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..format.checks import check_image
-from ..format.header import Layout, implied_options
+from ..format.fields import Layout
+from ..format.header import implied_options
 from ..transform import normals
 from ..transform.wavelets import max_levels
 from .alternatives import TRIAL_PIXELS

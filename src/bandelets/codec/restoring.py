@@ -10,7 +10,8 @@ from itertools import islice
 
 import numpy as np
 
-from ..format.header import MAX_RESTORATION, FormatError, pack, unpack
+from ..format.fields import MAX_RESTORATION, FormatError
+from ..format.header import pack, unpack
 from ..format.limits import OWN_FILE, check_memory, restoration_work
 from ..restore import loopfilter
 from ..runtime.progress import Progress

@@ -11,7 +11,8 @@ import numpy as np
 
 from .. import metrics
 from ..format.container import WORKERS, Grid, pack
-from ..format.header import HEADER_BYTES, MAX_THRESHOLD, MIN_THRESHOLD
+from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD
+from ..format.header import HEADER_BYTES
 from ..format.limits import check_encodable, tile_side
 from ..format.samples import as_read
 from ..runtime.progress import Progress
@@ -94,7 +95,9 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
                 return coded(box, t, restore, keep, unrestored)
 
             tiles = []
-            for tile in thread_map(one, zip(grid.boxes, earlier or [None] * len(grid.boxes), strict=True), WORKERS):
+            for tile in thread_map(
+                one, zip(grid.boxes, earlier or [None] * len(grid.boxes), strict=True), WORKERS
+            ):
                 tiles.append(tile)
                 line.step()
             if not (restore or keep):

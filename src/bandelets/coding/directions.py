@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..format.header import MAX_LIFTING, FormatError
+from ..format.fields import MAX_LIFTING, FormatError
 from ..transform.directional import OFFSETS, field_shapes
 from . import rangecoder
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..format.header import Header, padded_shape
-
+from ..format.fields import padded_shape
+from ..format.header import Header
 from ..transform.bandeletize import debandeletize_bins
 from ..transform.quadtree import flat_quadtree, root_width
 from ..transform.wavelets import subband_slices
@@ -64,7 +64,8 @@ def code_image(
     squares decode to.
 
     ``estimate``: the approximation is coded with version 17's model
-    (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's (:mod:`bandelets.coding.approximation`),
+    (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's
+    (:mod:`bandelets.coding.approximation`),
     for the level choice's prices (:mod:`bandelets.search.levelchoice`): no file is made that way.
 
     Returns

@@ -32,7 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..format.header import DEFAULT_WAVELET, HEADER_BYTES, LOSSLESS, Header, implied_options, pack
+from ..format.fields import DEFAULT_WAVELET, LOSSLESS
+from ..format.header import HEADER_BYTES, Header, implied_options, pack
 from .rangecoder import (
     POSITION,
     Coder,

@@ -334,8 +334,6 @@ def octave(v, most):
     return min(_BIT_LENGTHS[min(v, 2047)], most)
 
 
-
-
 @kernel
 def _flags(st, buf, probs, counts, bits, ctxs, decoding):
     r = registers(st)
@@ -479,8 +477,6 @@ def elias_gamma(r, buf, probs, counts, value, base, decoding, coarse=-1, first=-
     return out, r
 
 
-
-
 @kernel
 def _positive(st, buf, probs, counts, values, bases, decoding):
     r = registers(st)
@@ -505,5 +501,3 @@ def code_positive(coder: Coder, values: np.ndarray, bases: np.ndarray) -> np.nda
     if _positive(coder.state, coder.buf, coder.probs, coder.counts, values, bases, coder.decoding) != 0:
         raise CorruptStream("coded integer stream is corrupt")
     return values
-
-

@@ -121,7 +121,8 @@ def square_hints(
     Returns
     -------
     ndarray of int64, shape (n,): in the order of the squares' segment of
-    :func:`bandelets.coding.order.subband_plan`, ``predicted * 4 + parent`` (< :data:`bandelets.coding.coefficients.N_HINTS`),
+    :func:`bandelets.coding.order.subband_plan`, ``predicted * 4 + parent`` (<
+    :data:`bandelets.coding.coefficients.N_HINTS`),
     plus :data:`bandelets.coding.coefficients.SQUARE_START` at the first coefficient of each square.
     """
     level, orientation, _ = subband_slices(shape, levels)[index]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..format.header import FormatError
+from ..format.fields import FormatError
 from ..transform.geometry import directions, nearest_direction
 from ..transform.quadtree import MIN_WIDTH, Quadtree, flat_quadtree, root_width
 from . import rangecoder

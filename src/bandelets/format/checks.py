@@ -11,7 +11,7 @@ import numbers
 
 import numpy as np
 
-from .header import KINDS, MAX_MEMORY, MAX_THRESHOLD, MIN_THRESHOLD, TRANSFORMS, TRANSFORMS_1D, WAVELETS
+from .fields import KINDS, MAX_MEMORY, MAX_THRESHOLD, MIN_THRESHOLD, TRANSFORMS, TRANSFORMS_1D, WAVELETS
 from .limits import check_encodable
 
 __all__ = ["check_image", "check_options", "check_targets", "check_threshold"]

@@ -42,6 +42,7 @@ map, BENCHMARKS.md "What tiling costs").
 Written here: the container is ours. Its coding, tile by tile, is :mod:`bandelets.codec.tiled`
 (encoding) and :func:`bandelets.codec.decoder.decode` (decoding).
 """
+
 from __future__ import annotations
 
 import struct
@@ -50,7 +51,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .header import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError, Header, unpack
+from .fields import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError
+from .header import Header, unpack
 
 __all__ = [
     "MIN_TILE",

@@ -18,8 +18,8 @@ the source map, about 250 MiB).
 from __future__ import annotations
 
 from .container import TILE, WORKERS, Grid, cuts
-
-from .header import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, Header, padded_shape
+from .fields import MAX_LEVELS, MAX_MEMORY, MAX_SAMPLES, MAX_SIDE, MAX_WORK, FormatError, padded_shape
+from .header import Header
 
 __all__ = [
     "OWN_FILE",

@@ -9,7 +9,8 @@ The contract between the encoder and the decoder, in this one module:
 
 * :func:`quantize` gives the bins, :func:`dequantize` the values the decoder reconstructs;
 * the encoder may then move a value between 0 and +-1 (rate-distortion optimised
-  quantization, :func:`bandelets.search.quantization.optimise_bins`): a value of bin +-1 may be coded as 0, a dead-zone value
+  quantization, :func:`bandelets.search.quantization.optimise_bins`): a value of bin +-1 may be coded as 0,
+  a dead-zone value
   above :data:`PROMOTE_ABOVE` T as +-1;
 * so a decoder may assume no more than :func:`bin_bounds`: the interval each bin's value came
   from (the restoration, :mod:`bandelets.restore.restoration`, keeps every coefficient inside it).

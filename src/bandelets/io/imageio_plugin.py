@@ -25,10 +25,9 @@ from imageio.config.plugins import PluginConfig
 from imageio.core.request import URI_BYTES, InitializationError, Request
 from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 
-from ..codec.decoder import decode
+from ..codec.decoder import check, decode
 from ..codec.encoder import encode
 from ..format.container import header_of
-from ..codec.decoder import check
 
 __all__ = ["BandeletsPlugin", "register"]
 

@@ -62,8 +62,8 @@ from itertools import pairwise
 import numpy as np
 from numba import njit
 
-from ..format.header import (
-    MAX_FILTER_SHIFT,
+from ..format.fields import MAX_FILTER_SHIFT
+from ..format.filter import (
     LoopFilter,
     filter_bytes,
     filter_cross_offsets,

@@ -53,7 +53,8 @@ digits only (+4.12 / +0.49 dB on crease / bumps either way, ``benchmarks/restora
 in 0.7 times the CPU time at 512 x 512 for as many iterations (BENCHMARKS.md, "Decoder-side
 restoration").
 
-On an octahedral geometry image (the file's spherical extension, :func:`bandelets.transform.wavelets.spherical_folds`)
+On an octahedral geometry image (the file's spherical extension,
+:func:`bandelets.transform.wavelets.spherical_folds`)
 the image is glued across each edge to itself turned by half a turn: the penalty's first term also takes
 the difference of every border pixel with its neighbour across the edge (``folded``), where it would
 otherwise see no neighbour. Measured on fandisk / bunny's geometry images (256 x 256, ``restore=True``,
@@ -145,6 +146,8 @@ _SHORTEST = 1e-6
 #: in two threads: with format version 9's kernel at 128^2 x 3 already 0.29 ms against 0.36 in one,
 #: at 512^2 2.9 ms against 5.0 (2-core machine).
 THREADED_SAMPLES = 128 * 128
+
+
 def penalty_gradient(
     x: np.ndarray,
     smoothing: float,

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..coding.trees import predicted_directions, reference_of
 from ..format.checks import check_image, check_options, check_threshold
-from ..format.header import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET, Transform1D, Wavelet
+from ..format.fields import DEFAULT_TRANSFORM_1D, DEFAULT_WAVELET, Transform1D, Wavelet
 from ..transform.bandeletize import bandeletize
 from ..transform.bandelets import Bandelets, apply_trees, inverse, pad_channel
 from ..transform.geometry import directions, nearest_direction

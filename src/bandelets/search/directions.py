@@ -11,7 +11,7 @@ import numpy as np
 
 from ..coding.directions import N_CONTEXTS, code_fields
 from ..coding.rangecoder import Coder
-from ..format.header import MAX_LIFTING
+from ..format.fields import MAX_LIFTING
 from ..format.quantizer import dequantize, quantize
 from ..transform.directional import (
     BLOCK,
@@ -27,7 +27,16 @@ from ..transform.lifting import direction_costs
 from ..transform.wavelets import wavedec, waverec
 from .lagrangian import LAMBDA
 
-__all__ = ["PAYS_BELOW", "PAYS_BELOW_FRAMES", "choose", "chosen_analysis", "cost", "cost_ratio", "lift", "pays"]
+__all__ = [
+    "PAYS_BELOW",
+    "PAYS_BELOW_FRAMES",
+    "choose",
+    "chosen_analysis",
+    "cost",
+    "cost_ratio",
+    "lift",
+    "pays",
+]
 
 
 def chosen_analysis(
@@ -43,7 +52,10 @@ def chosen_analysis(
     alone); ``first``: :func:`first_costs` of the channels when the caller has them (the first pass
     reads the channels themselves)."""
     return analysis(
-        channels, levels, lifting, choose=lambda i, sources: choose(sources, threshold, pairs, first if i == 0 else None)
+        channels,
+        levels,
+        lifting,
+        choose=lambda i, sources: choose(sources, threshold, pairs, first if i == 0 else None),
     )
 
 

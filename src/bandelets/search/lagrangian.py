@@ -37,7 +37,7 @@ from functools import cache
 import numpy as np
 from numba import njit, prange
 
-from ..format.header import DEFAULT_TRANSFORM_1D
+from ..format.fields import DEFAULT_TRANSFORM_1D
 from ..format.quantizer import bin_and_error
 from ..transform.bandeletize import ORDER, alpert_matrices, multiwavelet
 from ..transform.geometry import directions

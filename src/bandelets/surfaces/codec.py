@@ -18,7 +18,8 @@ import numpy as np
 from ..codec.decoder import decode_parsed
 from ..codec.encoder import encode_with_stats
 from ..codec.options import EncodeOptions
-from ..format.header import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, unpack
+from ..format.fields import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY
+from ..format.header import unpack
 from . import checks, geometry_image, sphere
 
 __all__ = [

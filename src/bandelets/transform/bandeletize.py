@@ -22,7 +22,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from ..format.header import DEFAULT_TRANSFORM_1D
+from ..format.fields import DEFAULT_TRANSFORM_1D
 from ..format.quantizer import MAX_INDEX, RECONSTRUCTION
 from .geometry import directions, zigzag
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..format.header import DEFAULT_TRANSFORM_1D, padded_shape
+from ..format.fields import DEFAULT_TRANSFORM_1D, padded_shape
 from .bandeletize import debandeletize
 from .wavelets import subband_slices, wavedec, waverec
 

@@ -42,15 +42,25 @@ in one loop, so where every slope is 0 a pass costs what the plain one does).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 
 import numpy as np
-
-from collections.abc import Callable
 
 from .lifting import ALPHA, BETA, DELTA, GAMMA, cdf97_pass, directional_pass
 from .wavelets import _normalise
 
-__all__ = ["BLOCK", "LEVELS", "OFFSETS", "SCALES", "SLOPES_97", "WEIGHTS", "analysis", "field_shapes", "synthesis", "transform"]
+__all__ = [
+    "BLOCK",
+    "LEVELS",
+    "OFFSETS",
+    "SCALES",
+    "SLOPES_97",
+    "WEIGHTS",
+    "analysis",
+    "field_shapes",
+    "synthesis",
+    "transform",
+]
 
 #: Slope of the prediction line (rows per column step) of each CDF 9/7 direction code; 0 is the
 #: plain separable CDF 9/7. Steeper lines are the other pass's business.
@@ -130,7 +140,8 @@ def analysis(
 
     Returns
     -------
-    coefficients : list of ndarray, shape (H, W), Mallat layout as :func:`bandelets.transform.wavelets.wavedec`
+    coefficients : list of ndarray, shape (H, W), Mallat layout as
+    :func:`bandelets.transform.wavelets.wavedec`
     fields : list of ndarray of int
     """
     outs = [np.array(x, dtype=np.float64, order="C") for x in channels]
@@ -201,5 +212,3 @@ def synthesis(coefficients: np.ndarray, levels: int, lifting: int, fields: list[
     return transform(
         np.array(coefficients, dtype=np.float64, order="C"), levels, lifting, fields, inverse=True
     )
-
-

@@ -35,7 +35,7 @@ from functools import cache
 import numpy as np
 import pywt
 
-from ..format.header import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
+from ..format.fields import DEFAULT_WAVELET, EXTENSIONS, MAX_LEVELS, WAVELETS
 from . import lifting
 
 __all__ = [
