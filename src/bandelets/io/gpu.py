@@ -166,6 +166,15 @@ def mip_chain(normals: np.ndarray) -> list[np.ndarray]:
     list of ndarray
         Level 0 (the input, renormalised) to the 1 x 1 level, float64, each with the input's
         channels: (h, w, 3) unit vectors, or (h, w, 2) their x and y.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> levels = mip_chain(np.dstack([np.zeros((6, 5, 2)), np.ones((6, 5))]))
+    >>> [level.shape for level in levels]
+    [(6, 5, 3), (3, 2, 3), (1, 1, 3)]
+    >>> levels[1][0, 0].tolist()
+    [0.0, 0.0, 1.0]
     """
     channels = np.asarray(normals).shape[-1] if np.ndim(normals) == 3 else 3
     unit = to_unit(normals)
