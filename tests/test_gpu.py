@@ -7,6 +7,7 @@ Pillow (DDS level 0) and texture2ddecoder (every level).
 
 from __future__ import annotations
 
+import io
 import struct
 from pathlib import Path
 
@@ -205,6 +206,10 @@ def test_single_level_and_default_format(tmp_path: Path) -> None:
     info = read_ktx2((tmp_path / "one.ktx2").read_bytes())
     assert result.fmt == "bc5" and info["levels"] == 1 and info["vk_format"] == 141
     assert gpu.export(tmp_path / "one.dds", n, mips=False).fmt == "bc7"
+    # A file object: the container named, the same bytes as the path.
+    stream = io.BytesIO()
+    gpu.export(stream, n[..., :2], mips=False, container="ktx2")
+    assert stream.getvalue() == (tmp_path / "one.ktx2").read_bytes()
 
 
 def test_angular_error_added_measures_a_known_rotation() -> None:
