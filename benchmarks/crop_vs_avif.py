@@ -106,12 +106,13 @@ def busiest_window(values: np.ndarray, side: int) -> tuple[int, int]:
 def figure(
     panels: list[tuple[str, np.ndarray]],
     errors: list[np.ndarray],
+    note: str,
     corner: tuple[int, int],
     side: int,
     out: Path,
 ) -> None:
     """Write the crops of 8-bit RGB maps side by side (first row) and, under each decoded one, its
-    angle to the original in degrees on one colour scale (second row)."""
+    angle to the original in degrees on one colour scale (second row, ``note`` beside it)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,7 +130,8 @@ def figure(
         image = ax.imshow(error[window], cmap="magma", vmin=0.0, vmax=top, interpolation="nearest")
         ax.set_title("angle to the original (degrees)", fontsize=10)
     axes[1, 0].axis("off")
-    fig.colorbar(image, ax=axes[1, 0], location="right", fraction=0.5, label="degrees")
+    axes[1, 0].text(0.0, 0.5, note, fontsize=10, va="center", transform=axes[1, 0].transAxes)
+    fig.colorbar(image, ax=axes[1, 1:], location="right", shrink=0.9, label="degrees")
     for ax in axes.ravel():
         ax.set_xticks([])
         ax.set_yticks([])
@@ -163,6 +165,10 @@ def main(argv: list[str] | None = None) -> None:
     corner = busiest_window(source, args.crop)
     (_, our_bytes, our_bpp, our_psnr), (_, their_bytes, their_bpp, their_psnr) = rows
     errors = [angles(source, to_values(d)).reshape(height, width) for d in (our_samples, their_samples)]
+    note = "angle to the original,\nwhole map, degrees:\n\n" + "\n".join(
+        f"{codec}: mean {np.mean(e):.2f}, p99 {np.percentile(e, 99):.2f}"
+        for codec, e in zip(("bandelets", "AVIF"), errors, strict=True)
+    )
     figure(
         [
             (f"original: {name}\ncrop {args.crop} x {args.crop} at {corner}", samples),
@@ -173,6 +179,7 @@ def main(argv: list[str] | None = None) -> None:
             ),
         ],
         errors,
+        note,
         corner,
         args.crop,
         args.out,
