@@ -55,30 +55,6 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
         grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, grid.tile
     )
     kind = options.kind
-    # No loop filter: its bytes would come after the search of the threshold of every tile.
-    tile_options = replace(options, progress=False, tile=grid.tile, loop_filter=False)
-
-    def coded(box, t: float, restore: bool, keep: bool, unrestored: _Tile | None) -> _Tile:
-        tile = source[box]
-        earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
-        # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
-        # as that of one piece is (and as the decoder checks it), not max_work once per tile.
-        share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
-        encoded = encode_piece(
-            tile,
-            replace(tile_options, restore=restore, max_work=share),
-            threshold=t,
-            measured=keep,
-            unrestored=earlier,
-        )
-        out = _Tile(encoded.data, encoded.coefficient_sse)
-        if keep:
-            reference, depth = _reference(tile, options)
-            decoded = np.asarray(as_read(encoded.decoded, kind, depth)).reshape(reference.shape)
-            out.sse, out.samples, out.extremes = _squared_error(reference, decoded, kind)
-            if kind == "normal-map":
-                out.angles = metrics.angles(reference, decoded).astype(np.float32)
-        return out
 
     with Progress(options.progress) as line:
         # The tiles of each pass without restoration (their bytes): the last pass restores and
@@ -92,7 +68,7 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
 
             def one(item):
                 box, unrestored = item
-                return coded(box, t, restore, keep, unrestored)
+                return _coded_tile(source, box, grid, options, t, restore, keep, unrestored)
 
             tiles = []
             for tile in thread_map(
@@ -106,22 +82,7 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
             result = Encoded(data, t, sum(tile.coefficient_sse for tile in tiles))
             if not keep:
                 return result
-            sse, samples = sum(tile.sse for tile in tiles), sum(tile.samples for tile in tiles)
-            top = metrics.peak(np.concatenate([tile.extremes for tile in tiles]), kind)
-            result = replace(
-                result, psnr=float("inf") if sse == 0 else 20.0 * np.log10(top / np.sqrt(sse / samples))
-            )
-            if kind == "normal-map":
-                angles = np.concatenate([tile.angles for tile in tiles])
-                result = replace(
-                    result,
-                    angles=metrics.AngularError(
-                        float(angles.mean(dtype=np.float64)),
-                        float(np.percentile(angles, 99)),
-                        float(angles.max()),
-                    ),
-                )
-            return result
+            return _with_measures(result, tiles, kind)
 
         if threshold is not None:
             return encode_at(float(threshold), options.restore, measured)
@@ -165,6 +126,61 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
             label,
             MIN_THRESHOLD,
         )
+
+
+def _coded_tile(
+    source: np.ndarray,
+    box,
+    grid: Grid,
+    options,
+    t: float,
+    restore: bool,
+    keep: bool,
+    unrestored: _Tile | None,
+) -> _Tile:
+    """The tile ``box`` of ``source`` coded at ``t`` as one piece (``unrestored``: its file without
+    restoration, only restored again), measured when ``keep``."""
+    kind = options.kind
+    # No loop filter: its bytes would come after the search of the threshold of every tile.
+    tile_options = replace(options, progress=False, tile=grid.tile, loop_filter=False)
+    tile = source[box]
+    earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
+    # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
+    # as that of one piece is (and as the decoder checks it), not max_work once per tile.
+    share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
+    encoded = encode_piece(
+        tile,
+        replace(tile_options, restore=restore, max_work=share),
+        threshold=t,
+        measured=keep,
+        unrestored=earlier,
+    )
+    out = _Tile(encoded.data, encoded.coefficient_sse)
+    if keep:
+        reference, depth = _reference(tile, options)
+        decoded = np.asarray(as_read(encoded.decoded, kind, depth)).reshape(reference.shape)
+        out.sse, out.samples, out.extremes = _squared_error(reference, decoded, kind)
+        if kind == "normal-map":
+            out.angles = metrics.angles(reference, decoded).astype(np.float32)
+    return out
+
+
+def _with_measures(result: Encoded, tiles: list[_Tile], kind: str) -> Encoded:
+    """``result`` with the PSNR (and a normal map's angular error) of the whole image, from its tiles'."""
+    sse, samples = sum(tile.sse for tile in tiles), sum(tile.samples for tile in tiles)
+    top = metrics.peak(np.concatenate([tile.extremes for tile in tiles]), kind)
+    result = replace(result, psnr=float("inf") if sse == 0 else 20.0 * np.log10(top / np.sqrt(sse / samples)))
+    if kind == "normal-map":
+        angles = np.concatenate([tile.angles for tile in tiles])
+        result = replace(
+            result,
+            angles=metrics.AngularError(
+                float(angles.mean(dtype=np.float64)),
+                float(np.percentile(angles, 99)),
+                float(angles.max()),
+            ),
+        )
+    return result
 
 
 def _reference(tile: np.ndarray, options) -> tuple[np.ndarray, int]:

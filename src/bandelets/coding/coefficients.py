@@ -80,6 +80,8 @@ MAX_MAGNITUDE = 2**30
 
 
 _N_GUIDE = 4  # the guide channel's magnitude at the same place: 0, 1, 2+, or no guide
+#: Sign contexts: the signs (none, +, -) of the left neighbour, of the guide and of the upper one.
+_N_SIGN = 3 * 3 * 3
 
 
 _SIG = 0
@@ -98,7 +100,7 @@ _SIGN = _PREFIX + N_CLASSES * EG_PREFIX
 
 
 # The coarse contexts that back them (:func:`code_backed`): the same contexts without the class.
-_SIG_COARSE = _SIGN + N_CLASSES * 27
+_SIG_COARSE = _SIGN + N_CLASSES * _N_SIGN
 
 
 _GT1_COARSE = _SIG_COARSE + _N_SUM * 3 * _N_GUIDE
@@ -110,7 +112,7 @@ _GT2_COARSE = _GT1_COARSE + 5 * _N_GUIDE
 _SIGN_COARSE = _GT2_COARSE + 5 * _N_GUIDE
 
 
-_PREFIX_COARSE = _SIGN_COARSE + 27
+_PREFIX_COARSE = _SIGN_COARSE + _N_SIGN
 
 
 # The bandelet classes' own significance and sign contexts (:func:`_bandelet_significance`,
@@ -144,7 +146,7 @@ _N_ACTIVITY = 12
 _N_GUIDE_OCTAVES = 6
 
 
-_ACTIVITY = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 54
+_ACTIVITY = _BSIGN + (N_CLASSES - _FIRST_BANDELET) * 2 * _N_SIGN
 
 
 _PREFIX_ACTIVE = _ACTIVITY + 3 * N_CLASSES * _N_ACTIVITY * _N_GUIDE_OCTAVES
@@ -303,17 +305,8 @@ def _coefficients(
                     m = 2
             else:
                 m = 1
-            j = neighbours[i, 0]
-            sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
-            j = neighbours[i, 1]
-            sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
             leader = guide[at] if guide.shape[0] > 0 else 0
-            if hints.shape[0]:
-                sign_ctx, fine = _bandelet_sign(cls, sign_ctx, leader, agree)
-            else:
-                if leader != 0:
-                    sign_ctx += 3 if leader > 0 else 6
-                fine = _SIGN + cls * 27 + sign_ctx
+            sign_ctx, fine = _sign_contexts(known, neighbours[i], cls, leader, agree, hints.shape[0] > 0)
             negative, r = code_backed(
                 r, buf, probs, counts, fine, _SIGN_COARSE + sign_ctx, 1 if value < 0 else 0, decoding
             )
@@ -331,6 +324,22 @@ def _coefficients(
             spent[at] = (r[SPENT] - before) / COST_SCALE
     keep_registers(st, r)
     return status
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sign_contexts(known, neighbours, cls, leader, agree, bandelet):
+    """The sign's coarse context (the signs of the left and upper neighbours, and of the guide
+    ``leader``) and its fine one: of a 1D bandelet coefficient (``bandelet``,
+    :func:`_bandelet_sign`), else of its class."""
+    j = neighbours[0]
+    sign_ctx = 0 if j < 0 or known[j] == 0 else (1 if known[j] > 0 else 2)
+    j = neighbours[1]
+    sign_ctx += 0 if j < 0 or known[j] == 0 else (9 if known[j] > 0 else 18)
+    if bandelet:
+        return _bandelet_sign(cls, sign_ctx, leader, agree)
+    if leader != 0:
+        sign_ctx += 3 if leader > 0 else 6
+    return sign_ctx, _SIGN + cls * _N_SIGN + sign_ctx
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -353,10 +362,12 @@ def _bandelet_sign(cls, sign_ctx, leader, agree):
     (``sign_ctx`` < 9 + 18) and the guide channel's sign ``leader``, flipped when the signs coded
     so far in the square mostly disagreed with the guide's (``agree`` < 0: across a crease the
     two channels of a normal map change together, in a proportion of either sign). Returns the
-    shared context (< 27) and the class's own."""
+    shared context (< :data:`_N_SIGN`) and the class's own."""
     if leader != 0:
         sign_ctx += 3 if (leader > 0) == (agree >= 0) else 6
-    return sign_ctx, _BSIGN + (cls - _FIRST_BANDELET) * 54 + sign_ctx + (27 if agree != 0 else 0)
+    return sign_ctx, _BSIGN + (cls - _FIRST_BANDELET) * 2 * _N_SIGN + sign_ctx + (
+        _N_SIGN if agree != 0 else 0
+    )
 
 
 def coefficient_contexts() -> int:

@@ -34,6 +34,7 @@ from numba import njit
 
 from ..format.fields import DEFAULT_WAVELET, LOSSLESS
 from ..format.header import HEADER_BYTES, Header, implied_options, pack
+from .coefficients import median_of
 from .rangecoder import (
     POSITION,
     Coder,
@@ -149,6 +150,56 @@ def _unit_z(red, green, top):
     return np.int64(np.rint((z + 1.0) / 2.0 * top))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _neighbours(x, c, i, j, middle):
+    """Left, up, up-left, up-right and left-left of sample ``(c, i, j)``, replicated where they fall
+    outside the image (``middle`` at the first sample)."""
+    width = x.shape[2]
+    if j > 0:
+        a = x[c, i, j - 1]
+    elif i > 0:
+        a = x[c, i - 1, j]
+    else:
+        a = middle
+    b = x[c, i - 1, j] if i > 0 else a
+    nw = x[c, i - 1, j - 1] if i > 0 and j > 0 else b
+    ne = x[c, i - 1, j + 1] if i > 0 and j + 1 < width else b
+    ww = x[c, i, j - 2] if j > 1 else a
+    return a, b, nw, ne, ww
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _magnitude(r, buf, probs, counts, ctx, coarse, m, decoding):
+    """Elias gamma of a magnitude ``m >= 1`` (decoded when ``decoding``): the octave in unary, the
+    first three decisions in the sample's fine contexts backed by its coarse ones, then the bits
+    below it. Returns the magnitude (-1 for a corrupt stream) and the registers."""
+    octave = 0
+    while (m >> (octave + 1)) > 0:
+        octave += 1
+    k = 0
+    while True:
+        bit = 1 if k < octave else 0
+        at = coarse + _PREFIX_AT + min(k, _PREFIX - 1)
+        if k < 3:
+            more, r = code_backed(r, buf, probs, counts, ctx + 2 + k, at, bit, decoding)
+        else:
+            more, r = code_bit(r, buf, probs, counts, at, bit, decoding)
+        if more == 0:
+            break
+        k += 1
+        if k >= _PREFIX:
+            return -1, r
+    out = 1
+    for low in range(k - 1, -1, -1):
+        bit = (m >> low) & 1
+        if low == k - 1:
+            bit, r = code_bit(r, buf, probs, counts, coarse + _FIRST_BIT + k, bit, decoding)
+        else:
+            bit, r = code_raw_bit(r, buf, bit, decoding)
+        out = 2 * out + bit
+    return out, r
+
+
 @_kernel
 def _code(
     st,
@@ -184,24 +235,8 @@ def _code(
     for i in range(rows[0], rows[1]):
         for c in range(n_channels):
             for j in range(width):
-                # Neighbours, replicated where they fall outside the image.
-                if j > 0:
-                    a = x[c, i, j - 1]
-                elif i > 0:
-                    a = x[c, i - 1, j]
-                else:
-                    a = middle
-                b = x[c, i - 1, j] if i > 0 else a
-                nw = x[c, i - 1, j - 1] if i > 0 and j > 0 else b
-                ne = x[c, i - 1, j + 1] if i > 0 and j + 1 < width else b
-                ww = x[c, i, j - 2] if j > 1 else a
-                # The median edge detector of LOCO-I.
-                if nw >= max(a, b):
-                    med = min(a, b)
-                elif nw <= min(a, b):
-                    med = max(a, b)
-                else:
-                    med = a + b - nw
+                a, b, nw, ne, ww = _neighbours(x, c, i, j, middle)
+                med = median_of(a, b, nw)
                 predicted = med
                 if unit and c == 2:
                     predicted = _unit_z(x[0, i, j], x[1, i, j], top)
@@ -249,34 +284,10 @@ def _code(
                     negative, r = code_backed(
                         r, buf, probs, counts, ctx + 1, coarse + _SIGN, 1 if value < 0 else 0, decoding
                     )
-                    # Elias gamma of m >= 1: the octave in unary, then the bits below it.
-                    octave = 0
-                    while (m >> (octave + 1)) > 0:
-                        octave += 1
-                    k = 0
-                    while True:
-                        bit = 1 if k < octave else 0
-                        at = coarse + _PREFIX_AT + min(k, _PREFIX - 1)
-                        if k < 3:
-                            more, r = code_backed(r, buf, probs, counts, ctx + 2 + k, at, bit, decoding)
-                        else:
-                            more, r = code_bit(r, buf, probs, counts, at, bit, decoding)
-                        if more == 0:
-                            break
-                        k += 1
-                        if k >= _PREFIX:
-                            status = -1
-                            break
-                    if status != 0:
+                    out, r = _magnitude(r, buf, probs, counts, ctx, coarse, m, decoding)
+                    if out < 0:
+                        status = -1
                         break
-                    out = 1
-                    for low in range(k - 1, -1, -1):
-                        bit = (m >> low) & 1
-                        if low == k - 1:
-                            bit, r = code_bit(r, buf, probs, counts, coarse + _FIRST_BIT + k, bit, decoding)
-                        else:
-                            bit, r = code_raw_bit(r, buf, bit, decoding)
-                        out = 2 * out + bit
                     value = -out if negative else out
                 if decoding:
                     sample = predicted + flip * value

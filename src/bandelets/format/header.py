@@ -311,6 +311,92 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     return body + struct.pack("<I", zlib.crc32(body))
 
 
+def _consistency(
+    kind,
+    channels,
+    transform,
+    wavelet,
+    depth,
+    layout,
+    along,
+    height,
+    width,
+    levels,
+    threshold,
+    restoration,
+    filtered,
+    lifting,
+    folded,
+    riesz,
+    lifting_byte,
+    codes: tuple[int, int, int, int, int],
+    lengths,
+    spare: int,
+    max_side: int,
+    max_samples: int,
+) -> list[tuple[bool, str]]:
+    """Each check :func:`unpack` makes of a header's fields, and what it says when one fails; ``codes``:
+    the kind, transform, wavelet, depth and layout codes as read (None fields: unknown codes),
+    ``spare``: the bytes after the header and geometry options but the CRC."""
+    kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code = codes
+    return [
+        (kind is not None, f"unknown kind code {kind_code}"),
+        (
+            kind in (None, "image") or channels == 3 or (kind == "normal-map" and channels == 2),
+            f"a {kind} needs 3 channels{' (or 2)' if kind == 'normal-map' else ''}, the file has {channels}",
+        ),
+        (transform is not None, f"unknown transform code {transform_code}"),
+        (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
+        (depth is not None, f"bad sample depth code {depth_code}"),
+        (
+            layout == "xyz" or (layout is not None and kind == "normal-map" and channels == 2),
+            f"bad layout code {layout_code} for a {kind} of {channels} channels",
+        ),
+        (along is not None, f"unknown 1D transform code {along_code}"),
+        (
+            1 <= height <= max_side and 1 <= width <= max_side,
+            f"image size {width} x {height} exceeds the limit of {max_side} per side",
+        ),
+        (
+            height * width * channels <= max_samples,
+            f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
+        ),
+        (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
+        (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
+        (
+            0 < spare - sum(lengths) <= most_filter_bytes(channels) if filtered else sum(lengths) == spare,
+            "stream lengths do not match the file size",
+        ),
+        (
+            lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
+            f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
+        ),
+        (
+            not folded or _can_fold(kind, channels, transform, levels, height, width),
+            f"a folded {kind} of {channels} channels, {width} x {height} at {levels} levels",
+        ),
+        (
+            riesz is not None and (not riesz or _can_turn(kind, channels, transform)),
+            f"Riesz code {lifting_byte // 32 % 4} for a {kind} of {channels} channels ({transform})",
+        ),
+        (
+            lifting <= min(levels, MAX_LIFTING),
+            f"{lifting} directional levels (at most {MAX_LIFTING}, {levels} levels)",
+        ),
+        (
+            transform != LOSSLESS
+            or (
+                depth in (8, 16)
+                and kind != "geometry-image"
+                and (levels, threshold, restoration, filtered, lifting) == (1, 1.0, 0, 0, 0)
+                and lengths[0] == lengths[1] == 0
+            ),
+            f"a lossless file of depth {depth} with lossy fields (levels, threshold, restoration, "
+            "loop filter, lifting or geometry streams)",
+        ),
+    ]
+
+
 def unpack(
     data: bytes, *, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLES
 ) -> tuple[Header, tuple[bytes, bytes, bytes]]:
@@ -343,7 +429,9 @@ def unpack(
             f".bdl format version {version} is not supported (this build reads version {FORMAT_VERSION})"
         )
     if fields[2] == TILED_CODE:
-        raise FormatError("a tiled .bdl file: read it whole with bandelets.decode (bandelets.codec.tiles)")
+        raise FormatError(
+            "a tiled .bdl file: read it whole with bandelets.decode (bandelets.format.container)"
+        )
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
     if zlib.crc32(body) != crc:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
@@ -367,64 +455,13 @@ def unpack(
             raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
         stored = _GEOMETRY.unpack_from(body, start)
         (vertices,), start = _varints(body, start + _GEOMETRY.size, 1)
-    checks = [
-        (kind is not None, f"unknown kind code {kind_code}"),
-        (
-            kind in (None, "image") or channels == 3 or (kind == "normal-map" and channels == 2),
-            f"a {kind} needs 3 channels{' (or 2)' if kind == 'normal-map' else ''}, the file has {channels}",
-        ),
-        (transform is not None, f"unknown transform code {transform_code}"),
-        (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
-        (depth is not None, f"bad sample depth code {depth_code}"),
-        (
-            layout == "xyz" or (layout is not None and kind == "normal-map" and channels == 2),
-            f"bad layout code {layout_code} for a {kind} of {channels} channels",
-        ),
-        (along is not None, f"unknown 1D transform code {along_code}"),
-        (
-            1 <= height <= max_side and 1 <= width <= max_side,
-            f"image size {width} x {height} exceeds the limit of {max_side} per side",
-        ),
-        (
-            height * width * channels <= max_samples,
-            f"image of {height * width * channels} samples exceeds the limit of {max_samples}",
-        ),
-        (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
-        (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
-        (
-            0 < len(body) - start - sum(lengths) <= most_filter_bytes(channels)
-            if filtered
-            else sum(lengths) == len(body) - start,
-            "stream lengths do not match the file size",
-        ),
-        (
-            lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
-            f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
-        ),
-        (
-            not folded or _can_fold(kind, channels, transform, levels, height, width),
-            f"a folded {kind} of {channels} channels, {width} x {height} at {levels} levels",
-        ),
-        (
-            riesz is not None and (not riesz or _can_turn(kind, channels, transform)),
-            f"Riesz code {lifting_byte // 32 % 4} for a {kind} of {channels} channels ({transform})",
-        ),
-        (
-            lifting <= min(levels, MAX_LIFTING),
-            f"{lifting} directional levels (at most {MAX_LIFTING}, {levels} levels)",
-        ),
-        (
-            transform != LOSSLESS
-            or (
-                depth in (8, 16)
-                and kind != "geometry-image"
-                and (levels, threshold, restoration, filtered, lifting) == (1, 1.0, 0, 0, 0)
-                and lengths[0] == lengths[1] == 0
-            ),
-            f"a lossless file of depth {depth} with lossy fields (levels, threshold, restoration, "
-            "loop filter, lifting or geometry streams)",
-        ),
-    ]
+    checks = _consistency(
+        kind, channels, transform, wavelet, depth, layout, along, height, width, levels, threshold,
+        restoration, filtered, lifting, folded, riesz, lifting_byte,
+        (kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code), lengths, len(body)
+        - start,
+        max_side, max_samples,
+    )  # fmt: skip
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
