@@ -9,11 +9,13 @@ import pytest
 from conftest import straight_edge
 
 import bandelets
+from bandelets.coding import directions as coding_directions
 from bandelets.coding import rangecoder
 from bandelets.format.fields import FormatError
 from bandelets.format.header import pack, unpack
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.search import directions
 from bandelets.transform import directional, lifting
 from bandelets.transform.wavelets import wavedec
 
@@ -22,7 +24,7 @@ _TABLES = (directional.OFFSETS, directional.WEIGHTS, directional.SCALES)
 
 def test_synthesis_inverts_analysis_whatever_the_directions(rng):
     channels = [rng.normal(size=(64, 48)) for _ in range(2)]
-    coefficients, fields = directional.analysis(channels, 3, 2, threshold=0.1)
+    coefficients, fields = directions.chosen_analysis(channels, 3, 2, 0.1)
     assert any(np.any(f) for f in fields)  # noise picks some direction somewhere
     random = [rng.integers(0, len(directional.OFFSETS), f.shape) for f in fields]
     for chosen in (fields, random):
@@ -74,9 +76,9 @@ def test_direction_costs_count_the_high_pass_of_each_slope(rng):
 def test_directions_pay_on_creases_not_on_smooth_bumps():
     for sample, threshold, expected in ((crease_normal_map, 0.01, True), (bump_normal_map, 0.005, False)):
         channels = list(np.moveaxis(sample(256)[..., :2], -1, 0))
-        lifted, fields = directional.analysis(channels, 6, 2, threshold=threshold)
+        lifted, fields = directions.chosen_analysis(channels, 6, 2, threshold)
         assert any(np.any(f) for f in fields)  # some block finds a direction, even on the bumps
-        assert directional.pays(channels, lifted, fields, 6, 2, threshold) is expected
+        assert directions.pays(channels, lifted, fields, 6, 2, threshold) is expected
 
 
 def test_a_normal_map_is_lifted_by_default_only_where_directions_pay():
@@ -90,7 +92,7 @@ def test_a_normal_map_is_lifted_by_default_only_where_directions_pay():
 
 def test_an_oblique_edge_leaves_fewer_fine_coefficients():
     x = straight_edge(64, angle_deg=63.0, blur=0.5)
-    lifted, fields = directional.analysis([x], 3, 2, threshold=0.01)
+    lifted, fields = directions.chosen_analysis([x], 3, 2, 0.01)
     plain = wavedec(x, "cdf97", 3)
     fine = np.ones(x.shape, bool)
     fine[:32, :32] = False  # the finest level's three subbands
@@ -104,10 +106,10 @@ def test_directions_round_trip_through_the_coder(rng):
         rng.integers(0, len(directional.OFFSETS), s) * rng.integers(0, 2, s)
         for s in directional.field_shapes(shape, 2)
     ]
-    coder = rangecoder.Coder(directional.N_CONTEXTS)
-    directional.code_fields(coder, fields, shape, 2, 0)
-    decoded = directional.code_fields(
-        rangecoder.Coder(directional.N_CONTEXTS, coder.finish()), None, shape, 2, 0
+    coder = rangecoder.Coder(coding_directions.N_CONTEXTS)
+    coding_directions.code_fields(coder, fields, shape, 2, 0)
+    decoded = coding_directions.code_fields(
+        rangecoder.Coder(coding_directions.N_CONTEXTS, coder.finish()), None, shape, 2, 0
     )
     for a, b in zip(fields, decoded, strict=True):
         np.testing.assert_array_equal(a, b)
@@ -121,7 +123,7 @@ def test_normal_maps_are_lifted_on_request(crease_map):
         for lifting in (True, False, None)
     }
     # With the pair codes, one level more where that pays (here).
-    assert unpack(data[True])[0].lifting == directional.LEVELS + directional.DEEPER
+    assert unpack(data[True])[0].lifting == directional.LEVELS + directions.DEEPER
     assert unpack(data[False])[0].lifting == 0
     # On the small map the directions pay with the pair codes (they did not with the slopes
     # alone): by default the file is lifted, and smaller at the same threshold.
@@ -226,9 +228,9 @@ def test_pair_codes_are_kept_where_they_pay():
     # smooth bumps the estimate keeps the slopes alone.
     v, u = np.mgrid[0:128, 0:128]
     plates = [np.where((u + v // 3) % 40 < 20, 0.3, -0.2), np.where((v - u // 4) % 32 < 12, 0.1, 0.5)]
-    _, fields, lifted, _ = directional.lift(plates, 5, 2, 0.01)
+    _, fields, lifted, _ = directions.lift(plates, 5, 2, 0.01)
     assert any(np.any(f >= len(directional.SLOPES_97)) for f in fields)
     assert lifted == 3 and len(fields) == 6  # and one level deeper, where the pairs pay more
     bumps = list(np.moveaxis(bump_normal_map(128)[..., :2], -1, 0))
-    _, fields, _, _ = directional.lift(bumps, 5, 2, 0.005)
+    _, fields, _, _ = directions.lift(bumps, 5, 2, 0.005)
     assert not any(np.any(f >= len(directional.SLOPES_97)) for f in fields)

@@ -8,12 +8,13 @@ import pytest
 
 import bandelets
 from bandelets import metrics
-from bandelets.codec import encoder, normalmaps
+from bandelets.codec import piece
 from bandelets.format.header import unpack
 from bandelets.format.samples import from_samples
 from bandelets.samples import bevel_normal_map, bump_normal_map
 from bandelets.search import levelchoice
 from bandelets.search.levelchoice import FRAMES_LEVELS, MIN_LEVELS, choose_levels, levels_to_try
+from bandelets.transform import normals
 from bandelets.transform.bandelets import wavelet_coefficients
 from bandelets.transform.wavelets import coarse_blocks, max_levels, wavedec
 
@@ -30,7 +31,7 @@ def test_coarse_blocks_are_the_coarse_part_of_each_transform(first, rng):
 
 def _coded(vectors):
     x = metrics.unit_vectors(vectors)
-    return normalmaps.equidistant(x), max_levels(x.shape[:2])
+    return normals.equidistant(x), max_levels(x.shape[:2])
 
 
 def test_flat_facets_take_fewer_levels_smooth_bumps_all():
@@ -49,7 +50,7 @@ def test_the_encoder_writes_the_levels_chosen_and_they_pay(monkeypatch):
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
             monkeypatch.setattr(
-                encoder, "levels_to_try", lambda coefficients, levels, threshold, frames=False: (levels,)
+                piece, "levels_to_try", lambda coefficients, levels, threshold, frames=False: (levels,)
             )
         # The channels as they are (their Riesz pair chooses its own levels: test_riesz.py).
         data = bandelets.encode(samples, bpp=0.5, kind="normal-map", depth=8, riesz=False)
@@ -73,7 +74,7 @@ def _sphere(n, cells=None):
 def test_three_channels_facets_take_fewer_levels_a_smooth_sphere_all():
     for name, expected in (("facets", FRAMES_LEVELS), ("smooth", 4)):
         x = metrics.unit_vectors(_sphere(128, 6 if name == "facets" else None))
-        assert not normalmaps.faces_one_way(x)
+        assert not normals.faces_one_way(x)
         coefficients = wavelet_coefficients(x, "cdf97", max_levels(x.shape[:2]))
         for t in (0.3, 0.03):
             assert choose_levels(coefficients, 4, t, frames=True) == expected
@@ -89,7 +90,7 @@ def test_three_channels_encode_with_the_levels_chosen_and_they_pay(monkeypatch, 
     for choice in ("chosen", "all levels"):
         if choice == "all levels":
             monkeypatch.setattr(
-                encoder, "levels_to_try", lambda coefficients, levels, threshold, frames: (levels,)
+                piece, "levels_to_try", lambda coefficients, levels, threshold, frames: (levels,)
             )
         data = bandelets.encode(vectors, kind="normal-map", **target)
         files[choice] = (

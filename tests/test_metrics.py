@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bandelets.metrics import angular_error, bd_psnr, bits_per_pixel, peak, psnr
+from bandelets.transform import normals
 from bandelets.transform.normals import unit_vectors, with_z
 
 
@@ -148,14 +149,14 @@ def test_unit_normals_of_a_large_map_in_two_threads_are_the_same_numbers(monkeyp
     from bandelets import metrics
 
     padded = rng.uniform(-1.2, 1.2, (2, 40, 30)).astype(np.float32)
-    whole = metrics.unit_normals(padded.astype(np.float64), 37, 29, equidistant)
+    whole = normals.unit_normals(padded.astype(np.float64), 37, 29, equidistant)
     monkeypatch.setattr(metrics, "CORES", 2)
     monkeypatch.setattr(metrics, "THREADED_PIXELS", 0)
-    np.testing.assert_array_equal(metrics.unit_normals(padded, 37, 29, equidistant), whole)
+    np.testing.assert_array_equal(normals.unit_normals(padded, 37, 29, equidistant), whole)
     for row in (3, 30):
         broken = padded.copy()
         broken[0, row, 5] = np.nan
-        assert metrics.unit_normals(broken, 37, 29, equidistant) is None
+        assert normals.unit_normals(broken, 37, 29, equidistant) is None
 
 
 def test_equidistant_coordinates_invert_and_stop_at_minus_z(rng):
@@ -176,11 +177,10 @@ def test_the_encoders_measure_sums_two_halves_of_a_large_map_as_one(monkeypatch)
     """Above ``THREADED_PIXELS`` the measure of a normal map sums the halves of its rows in two
     threads: the PSNR of the whole, as in one pass (to the last bits of the sum's order)."""
     from bandelets import metrics
-    from bandelets.codec import normalmaps
 
     rng = np.random.default_rng(3)
     reference = unit_vectors(rng.normal(size=(300, 280, 3)) + [0.0, 0.0, 4.0])
-    decoded = normalmaps.equidistant(unit_vectors(reference + rng.normal(scale=0.01, size=reference.shape)))
+    decoded = normals.equidistant(unit_vectors(reference + rng.normal(scale=0.01, size=reference.shape)))
     channels = np.ascontiguousarray(np.moveaxis(decoded, -1, 0))
     monkeypatch.setattr(metrics, "CORES", 2)
     halves = metrics.psnr_of_channels(reference, "normal-map", 8, equidistant=True)(channels)

@@ -10,7 +10,7 @@ import pytest
 
 import bandelets
 from bandelets import metrics
-from bandelets.codec import decoder, encoder
+from bandelets.codec import decoder, encoder, restoring
 from bandelets.codec.options import EncodeOptions
 from bandelets.format.header import pack, unpack
 from bandelets.format.quantizer import bin_bounds, dequantize, quantize
@@ -332,4 +332,4 @@ def test_the_encoder_writes_the_fewest_iterations_that_keep_the_share(crease_map
     gains = scores - scores[0]
     chosen = unpack(bandelets.encode(crease_map, bpp=1.0, kind="normal-map"))[0].restoration
     assert 0 < chosen <= np.argmax(gains)
-    assert gains[chosen] >= encoder.RESTORATION_SHARE * gains.max() > gains[chosen - 1]
+    assert gains[chosen] >= restoring.RESTORATION_SHARE * gains.max() > gains[chosen - 1]

@@ -12,7 +12,7 @@ import pytest
 
 import bandelets
 from bandelets import metrics
-from bandelets.codec import encoder
+from bandelets.codec import alternatives
 from bandelets.format.fields import FormatError
 from bandelets.format.header import pack, unpack
 from bandelets.format.samples import from_samples
@@ -165,7 +165,7 @@ def test_a_map_that_is_no_height_field_takes_the_cheaper_sign(shared_data, monke
     files = {}
     for rule in ("cheaper", "smaller curl"):
         if rule == "smaller curl":
-            monkeypatch.setattr(encoder, "RIESZ_SIGN_BY_COST", 1.0)
+            monkeypatch.setattr(alternatives, "RIESZ_SIGN_BY_COST", 1.0)
         data = bandelets.encode(pixels, bpp=1.0, kind="normal-map", riesz=True, lossless=False)
         files[rule] = unpack(data)[0].riesz, metrics.psnr(vectors, bandelets.decode(data), "normal-map")
     assert files["cheaper"][0] == -files["smaller curl"][0]

@@ -100,8 +100,8 @@ def choose_levels(coefficients: list[np.ndarray], levels: int, threshold: float,
     Examples
     --------
     >>> from bandelets.samples import bevel_normal_map
-    >>> from bandelets.io.files import from_samples
-    >>> from bandelets.codec.normalmaps import equidistant
+    >>> from bandelets.format.samples import from_samples
+    >>> from bandelets.transform.normals import equidistant
     >>> from bandelets.transform.bandelets import wavelet_coefficients
     >>> bevel = equidistant(from_samples(bevel_normal_map(128), "normal-map", 8))
     >>> choose_levels(wavelet_coefficients(bevel, "cdf97", 5), 5, 0.3)
