@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .format.fields import Kind
 from .format.samples import as_read
 from .runtime.threads import CORES, workers
 from .transform.normals import THREADED_PIXELS, as_real, hemisphere, unit_length, unit_vectors, with_z
@@ -85,9 +86,9 @@ def peak(reference: np.ndarray, kind: str = "image") -> float:
     * geometry-image: the diagonal of the bounding box of the positions.
     """
     reference = np.asarray(reference, np.float64)
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         return float(np.max(np.abs(reference)))
-    if kind == "geometry-image":
+    if kind == Kind.GEOMETRY_IMAGE:
         flat = reference.reshape(-1, reference.shape[-1])
         return float(np.linalg.norm(np.ptp(flat, axis=0)))
     span = float(np.ptp(reference))
@@ -111,15 +112,15 @@ def psnr_against(reference: np.ndarray, kind: str = "image") -> Callable[[np.nda
     encoder measures every restoration iteration)."""
     reference = np.asarray(reference, np.float64)
     # A normal map of x, y alone is compared on x, y, z (as a BC5 decoder rebuilds z).
-    xy = kind == "normal-map" and reference.shape[-1] == 2
-    if kind == "normal-map":
+    xy = kind == Kind.NORMAL_MAP and reference.shape[-1] == 2
+    if kind == Kind.NORMAL_MAP:
         reference = unit_vectors(with_z(reference) if xy else reference)
     top = peak(reference, kind)
 
     def measure(decoded: np.ndarray) -> float:
         decoded = np.asarray(decoded, np.float64)
         decoded = (with_z(decoded) if xy else decoded).reshape(reference.shape)
-        if kind == "normal-map":
+        if kind == Kind.NORMAL_MAP:
             decoded = unit_vectors(decoded)
         rmse = float(np.sqrt(np.mean((reference - decoded) ** 2)))
         return float("inf") if rmse == 0 else 20.0 * np.log10(top / rmse)
@@ -144,7 +145,7 @@ def psnr_of_channels(
     (:func:`bandelets.io.files.as_read`): what the user gets.
     """
     reference = np.asarray(reference, np.float64)
-    if kind != "normal-map":
+    if kind != Kind.NORMAL_MAP:
         measure = psnr_against(reference, kind)
         rows, cols = reference.shape[:2]
         return lambda channels: measure(as_read(np.moveaxis(channels[:, :rows, :cols], 0, -1), kind, depth))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..format.fields import Kind
 from ..transform.normals import unit_vectors
 
 __all__ = [
@@ -83,7 +84,7 @@ def sample_depth(codec: str, source_depth: int) -> int:
 
 def value_range(array: np.ndarray, kind: str, source_depth: int) -> tuple[float, float]:
     """The interval mapped to the integer samples (see the module notes)."""
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         return -1.0, 1.0
     if source_depth:
         return 0.0, 1.0
@@ -195,7 +196,7 @@ def encode(array: np.ndarray, bpp: float, codec: str, kind: str = "image", sourc
         if integer and high - low <= 1:
             break
         quality = (low + high) // 2 if integer else (low + high) / 2
-        data = _encode_once(codec, samples, bits, quality, kind != "image")
+        data = _encode_once(codec, samples, bits, quality, kind != Kind.IMAGE)
         if len(data) <= target:
             best = max(best, data, key=len)
             low = quality
@@ -223,4 +224,4 @@ def decode(
     samples = decoders.get(codec, imagecodecs.jpegxl_decode)(data)
     out = _from_samples(samples, *value_range(source, kind, source_depth), sample_depth(codec, source_depth))
     out = out.reshape(np.shape(source))
-    return unit_vectors(out) if kind == "normal-map" else out
+    return unit_vectors(out) if kind == Kind.NORMAL_MAP else out

@@ -41,7 +41,7 @@ from tqdm import tqdm
 
 from ..codec.decoder import check, decode
 from ..codec.encoder import encode
-from ..format.fields import FORMAT_VERSION, KINDS
+from ..format.fields import FORMAT_VERSION, KINDS, Kind
 from ..format.limits import decoder_memory, encoder_memory, tile_side
 from ..io.files import MESH_SUFFIXES, SUFFIXES, image_shape, read_array, write_atomic
 from ..metrics import angular_error, bits_per_pixel, psnr
@@ -201,7 +201,7 @@ def _compress_image(job: Job) -> dict:
     decoded = decode(data)
     row = {"bytes": len(data), "bpp": bits_per_pixel(len(data), array.shape)}
     row["psnr"] = psnr(array, decoded, job.kind)
-    if job.kind == "normal-map":
+    if job.kind == Kind.NORMAL_MAP:
         angles = angular_error(array, decoded)
         row |= {"mean_angle_deg": angles.mean, "p99_angle_deg": angles.p99}
     return row

@@ -28,6 +28,7 @@ from ..format.fields import (
     TRANSFORMS,
     TRANSFORMS_1D,
     WAVELETS,
+    Kind,
 )
 
 __all__ = ["main"]
@@ -503,11 +504,11 @@ def _info(args) -> None:
     }
     if is_tiled(data):
         info |= {"tile": grid.tile, "tiles": len(grid.boxes)}
-    if header.kind == "geometry-image":
+    if header.kind == Kind.GEOMETRY_IMAGE:
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
-    if header.kind == "normal-map":
+    if header.kind == Kind.NORMAL_MAP:
         info |= {"layout": header.layout, "folded": header.folded}
-    if header.kind == "geometry-image" or header.frames:
+    if header.kind == Kind.GEOMETRY_IMAGE or header.frames:
         info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))
 

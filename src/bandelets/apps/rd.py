@@ -38,6 +38,7 @@ from .. import samples
 from ..codec.decoder import decode
 from ..codec.encoder import encode
 from ..format.checks import check_image
+from ..format.fields import Kind
 from ..format.samples import from_samples
 from ..io.files import MESH_SUFFIXES, read_array, write_atomic
 from ..metrics import angular_error, bd_psnr, bits_per_pixel, psnr
@@ -236,7 +237,7 @@ def _point(source: Source | MeshSource, codec: str, rate: float, folder: Path) -
         rate_value = bits_per_pixel(len(written), source.array.shape)
         quality = psnr(source.array, decoded, source.kind)
         side = {}
-        if source.kind == "normal-map":
+        if source.kind == Kind.NORMAL_MAP:
             side = dict(zip(_ANGLE_COLUMNS, angular_error(source.array, decoded), strict=True))
     return {
         "input": source.name,

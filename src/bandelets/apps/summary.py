@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..format.fields import LOSSLESS
+from ..format.fields import LOSSLESS, Kind
 from ..format.samples import as_read
 from ..metrics import angular_error, bits_per_pixel
 
@@ -61,7 +61,7 @@ def encode_summary(
         f"{rate:.3f} bpp, PSNR {encoded.psnr:.2f} dB"
     )
     note = ""
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         reference = array[..., :2] if xy else array
         error = encoded.angles or angular_error(reference, as_read(encoded.decoded, kind, depth))
         line += f", angle mean {error.mean:.2f} p99 {error.p99:.2f} max {error.max:.1f} deg"

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..format.fields import MAX_THRESHOLD
+from ..format.fields import MAX_THRESHOLD, Kind
 from ..search import directions
 from ..search.levelchoice import choose_levels
 from ..transform import riesz
@@ -176,7 +176,7 @@ def raised_t_max(coefficients: list, t_max: float) -> float:
 def lifting_levels_for(options: EncodeOptions, levels: int, geometry: dict) -> int:
     """Wavelet levels to lift along directions for ``options.lifting`` (see :func:`encode`)."""
     if options.lifting is None:  # the default: normal maps with CDF 9/7
-        wanted = options.kind == "normal-map" and options.wavelet == "cdf97"
+        wanted = options.kind == Kind.NORMAL_MAP and options.wavelet == "cdf97"
     else:
         wanted = options.lifting
     return min(LEVELS, levels) if wanted else 0

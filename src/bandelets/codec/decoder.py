@@ -14,7 +14,17 @@ import numpy as np
 from ..coding import lossless, rangecoder
 from ..coding.image import code_image, code_lifting, new_coders
 from ..format.container import WORKERS, check_region, is_tiled, output_of, read
-from ..format.fields import FORMAT_VERSION, LOSSLESS, MAGIC, MAX_MEMORY, MAX_WORK, FormatError, padded_shape
+from ..format.fields import (
+    FORMAT_VERSION,
+    LOSSLESS,
+    MAGIC,
+    MAX_MEMORY,
+    MAX_WORK,
+    FormatError,
+    Kind,
+    Layout,
+    padded_shape,
+)
 from ..format.header import Header, unpack
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
@@ -179,7 +189,7 @@ def decoded_bins(
 def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
     """The channels after 0, 1, 2, ... restoration iterations
     (:func:`bandelets.restore.restoration.iterate`)."""
-    unit = header.kind == "normal-map" and header.channels == 3
+    unit = header.kind == Kind.NORMAL_MAP and header.channels == 3
     return restoration.iterate(
         quantized,
         header.threshold,
@@ -264,13 +274,13 @@ def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray],
 def decoded_image(channels, header: Header) -> np.ndarray:
     """What :func:`decode` returns, from the decoded (padded) channels."""
     overflow = FormatError("corrupt .bdl file: the decoded values overflow")
-    if header.kind == "normal-map":  # 2 or 3 channels (bandelets.format.header.unpack)
+    if header.kind == Kind.NORMAL_MAP:  # 2 or 3 channels (bandelets.format.header.unpack)
         # Two channels of a map of unit vectors are equidistant coordinates (bandelets.codec.normalmaps).
-        out = unit_normals(channels, header.height, header.width, equidistant=header.layout == "xyz")
+        out = unit_normals(channels, header.height, header.width, equidistant=header.layout == Layout.XYZ)
         if out is None:
             raise overflow
         # Returned in the layout the source had (bandelets.format.header.LAYOUTS).
-        return out[..., :2] if header.layout == "xy" else out
+        return out[..., :2] if header.layout == Layout.XY else out
     out = np.stack([c[: header.height, : header.width] for c in channels], axis=-1, dtype=np.float64)
     if not np.all(np.isfinite(out)):
         raise overflow

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..coding import lossless
 from ..format.checks import check_image, check_targets
+from ..format.fields import Kind
 from ..format.header import unpack
 from ..format.limits import OWN_FILE, check_encodable
 from ..format.samples import to_samples
@@ -149,7 +150,7 @@ def _lossless(array, options: EncodeOptions, measured: bool, bpp: float | None =
             return None
         array = np.asarray(array)
         check_image(
-            normalmaps.prepare(array, options.depth, False)[0] if options.kind == "normal-map" else array,
+            normalmaps.prepare(array, options.depth, False)[0] if options.kind == Kind.NORMAL_MAP else array,
             options.kind,
             options.max_memory,
         )

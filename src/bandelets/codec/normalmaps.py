@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..format.fields import Kind
 from ..format.samples import integer_samples
 from ..transform.normals import with_z
 
@@ -47,10 +48,10 @@ def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]
     depth : int
     layout : {"xyz", "xy", "rg"}
     """
-    values, depth = integer_samples(np.asarray(array), "normal-map", depth)
+    values, depth = integer_samples(np.asarray(array), Kind.NORMAL_MAP, depth)
     channels = values.shape[2] if values.ndim == 3 else 0
     if xy and channels != 3:
         raise ValueError(f"xy takes a normal map of 3 channels (x, y, unused blue), got shape {values.shape}")
     if channels == 2 or xy:
-        return with_z(np.asarray(values[..., :2], np.float64)), depth, "xy" if channels == 2 else "rg"
-    return values, depth, "xyz"
+        return with_z(np.asarray(values[..., :2], np.float64)), depth, Layout.XY if channels == 2 else Layout.RG
+    return values, depth, Layout.XYZ

@@ -157,7 +157,7 @@ class EncodeOptions:
     def __post_init__(self) -> None:
         if self.lossless not in (None, True, False):
             raise ValueError(f"lossless must be None, True or False, got {self.lossless!r}")
-        if self.lossless and self.kind == "geometry-image":
+        if self.lossless and self.kind == Kind.GEOMETRY_IMAGE:
             raise ValueError("a geometry image has float positions: it has no lossless coding")
         if not (isinstance(self.tile, (int, np.integer)) and (self.tile == 0 or self.tile >= MIN_TILE)):
             raise ValueError(
@@ -166,23 +166,23 @@ class EncodeOptions:
         if self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         object.__setattr__(self, "kind", Kind(self.kind))  # the string turned into its type once, here
-        if self.xy and self.kind != "normal-map":
+        if self.xy and self.kind != Kind.NORMAL_MAP:
             raise ValueError("xy applies to normal maps only")
         if self.riesz not in (None, True, False):
             raise ValueError(f"riesz must be None, True or False, got {self.riesz!r}")
-        if self.riesz and self.kind != "normal-map":
+        if self.riesz and self.kind != Kind.NORMAL_MAP:
             raise ValueError("riesz applies to normal maps only (their two channels)")
         if self.riesz and self.lifting:
             raise ValueError("a Riesz pair is not lifted along directions: give riesz or lifting, not both")
         if self.depth not in (0, 8, 16):
             raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
         check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))
-        if self.lifting and (self.wavelet not in ("cdf97", AUTO_WAVELET) or self.kind == "geometry-image"):
+        if self.lifting and (self.wavelet not in ("cdf97", AUTO_WAVELET) or self.kind == Kind.GEOMETRY_IMAGE):
             raise ValueError(
                 f"directional lifting needs the cdf97 wavelet and an image or a normal map, got "
                 f"{self.wavelet} and a {self.kind}"
             )
-        if self.kind != "geometry-image":
+        if self.kind != Kind.GEOMETRY_IMAGE:
             if self.frames or self.extension != "symmetric" or self.mesh_vertices:
                 raise ValueError(
                     "local frames, the spherical extension and mesh vertices apply to geometry images only"
@@ -203,7 +203,7 @@ class EncodeOptions:
 def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:
     """The geometry-image fields of the header (``{}`` for other kinds); ``ValueError`` if an
     image of ``shape`` cannot have the options' extension."""
-    if options.kind != "geometry-image":
+    if options.kind != Kind.GEOMETRY_IMAGE:
         return {}
     check_extension(shape, options.wavelet, 1, options.extension)  # the encoder then picks levels that fit
     weight = float(options.normal_weight) if options.frames else 1.0

@@ -22,7 +22,7 @@ from functools import partial
 import numpy as np
 
 from .. import metrics
-from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD
+from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD, Kind, Layout
 from ..format.header import HEADER_BYTES, Header, pack, unpack
 from ..format.limits import OWN_FILE
 from ..format.samples import as_read
@@ -129,7 +129,7 @@ class _PieceEncoder:
         # A rate target's model keeps a sample of the magnitudes, not all of them.
         self.model = ratecontrol.size_model(magnitudes) if bpp is not None else None
         del magnitudes
-        layout_xy = plan.layout == "xy"
+        layout_xy = plan.layout == Layout.XY
         self.reference = x[..., 0] if x.shape[2] == 1 else x[..., :2] if layout_xy else x
         # A quality target's search starts where a uniform quantizer's error would meet it.
         self.t_guess = None
@@ -139,7 +139,7 @@ class _PieceEncoder:
             top = metrics.peak(self.reference, options.kind)
             self.t_guess = min(self.t_max, 2.0 * top * 10 ** (-psnr / 20)) or self.t_max / 1e3
         targeted = (bpp, threshold, self.t_guess) != (None,) * 3
-        self.choosing_levels = options.kind == "normal-map" and options.wavelet == "cdf97" and targeted
+        self.choosing_levels = options.kind == Kind.NORMAL_MAP and options.wavelet == "cdf97" and targeted
         self.quality_target = psnr is not None or max_angle is not None
         #: The runner-up count of levels, if close, for a rate target to try.
         self.level_trial: list[int] = []
@@ -225,7 +225,7 @@ class _PieceEncoder:
             self.measures.to_error = partial(
                 squared_error_of,
                 peak=metrics.peak(reference, kind),
-                samples=plan.height * plan.width * (3 if kind == "normal-map" else plan.channels),
+                samples=plan.height * plan.width * (3 if kind == Kind.NORMAL_MAP else plan.channels),
             )
         # Rate control holds the source only where it measures a decoded image against it: a
         # quality target, or a measured encode without the restoration.

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..format.checks import check_image
-from ..format.fields import Layout
+from ..format.fields import Kind, Layout
 from ..format.header import implied_options
 from ..transform import normals
 from ..transform.wavelets import max_levels
@@ -70,23 +70,23 @@ def plan_image(array, options: EncodeOptions) -> tuple[Plan, np.ndarray, np.ndar
         An unusable image, or ``riesz=True`` for a map that is not coded as two channels.
     """
     kind, depth, layout = options.kind, options.depth, Layout.XYZ
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         array, depth, layout = prepare(array, depth, options.xy)
     x = given = check_image(array, kind, options.max_memory)
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         x = normals.unit_vectors(x)
     levels = max_levels(x.shape[:2])
     geometry = geometry_options(options, x.shape[:2])
     # A map of normals that face one way is coded as two channels: the azimuthal equidistant
     # coordinates of its vectors, or x, y as given (BC5 sources).
-    two = kind == "normal-map" and (layout != Layout.XYZ or normals.faces_one_way(x))
+    two = kind == Kind.NORMAL_MAP and (layout != Layout.XYZ or normals.faces_one_way(x))
     # The normals of a closed surface on an octahedral geometry image (never facing one way).
-    folded = kind == "normal-map" and not two and normals.octahedral(x)
+    folded = kind == Kind.NORMAL_MAP and not two and normals.octahedral(x)
     if options.extension == "spherical" or folded:  # no padding: the fold must stay on the image's border
         while levels > 1 and x.shape[0] % (1 << levels):
             levels -= 1
     coded = (normals.equidistant(x) if layout == Layout.XYZ else given[..., :2]) if two else x
-    if kind == "normal-map":  # three channels: always in local frames
+    if kind == Kind.NORMAL_MAP:  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
     if options.riesz and not two:
         raise ValueError(

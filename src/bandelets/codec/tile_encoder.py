@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import metrics
 from ..format.container import WORKERS, Grid, pack
-from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD
+from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD, Kind, Layout
 from ..format.header import HEADER_BYTES
 from ..format.limits import check_encodable, tile_side
 from ..format.samples import as_read
@@ -160,7 +160,7 @@ def _coded_tile(
         reference, depth = _reference(tile, options)
         decoded = np.asarray(as_read(encoded.decoded, kind, depth)).reshape(reference.shape)
         out.sse, out.samples, out.extremes = _squared_error(reference, decoded, kind)
-        if kind == "normal-map":
+        if kind == Kind.NORMAL_MAP:
             out.angles = metrics.angles(reference, decoded).astype(np.float32)
     return out
 
@@ -170,7 +170,7 @@ def _with_measures(result: Encoded, tiles: list[_Tile], kind: str) -> Encoded:
     sse, samples = sum(tile.sse for tile in tiles), sum(tile.samples for tile in tiles)
     top = metrics.peak(np.concatenate([tile.extremes for tile in tiles]), kind)
     result = replace(result, psnr=float("inf") if sse == 0 else 20.0 * np.log10(top / np.sqrt(sse / samples)))
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         angles = np.concatenate([tile.angles for tile in tiles])
         result = replace(
             result,
@@ -187,17 +187,17 @@ def _reference(tile: np.ndarray, options) -> tuple[np.ndarray, int]:
     """What the encoder measures a decoded tile against (as :func:`bandelets.codec.encoder.encode_with_stats`
     does: a normal map as unit vectors, ``x, y`` alone for that layout), and the source's depth."""
 
-    if options.kind != "normal-map":
+    if options.kind != Kind.NORMAL_MAP:
         return np.asarray(tile, np.float64), options.depth
     x, depth, layout = normalmaps.prepare(tile, options.depth, options.xy)
     x = unit_vectors(np.asarray(x, np.float64))
-    return (x[..., :2] if layout == "xy" else x), depth
+    return (x[..., :2] if layout == Layout.XY else x), depth
 
 
 def _compared(reference: np.ndarray, kind: str) -> np.ndarray:
     """``reference`` as :func:`bandelets.metrics.psnr_against` compares it."""
 
-    if kind == "normal-map":
+    if kind == Kind.NORMAL_MAP:
         return unit_vectors(with_z(reference) if reference.shape[-1] == 2 else reference)
     return reference
 
@@ -214,7 +214,7 @@ def _squared_error(reference: np.ndarray, decoded: np.ndarray, kind: str) -> tup
     is averaged over, and :func:`_extremes` of the reference."""
 
     compared = _compared(reference, kind)
-    if kind == "normal-map" and reference.shape[-1] == 2:
+    if kind == Kind.NORMAL_MAP and reference.shape[-1] == 2:
         decoded = with_z(decoded)
     return (
         float(np.sum((compared - decoded.reshape(compared.shape)) ** 2)),
@@ -239,7 +239,7 @@ def _coefficient_sample(source: np.ndarray, grid: Grid, options) -> tuple[np.nda
         compared = _compared(reference, options.kind)
         extremes.append(_extremes(compared))
         channels = compared if compared.ndim == 3 else compared[..., None]
-        if options.kind == "normal-map" and np.all(channels[..., 2] >= 0):
+        if options.kind == Kind.NORMAL_MAP and np.all(channels[..., 2] >= 0):
             channels = channels[..., :2]
         coefficients = wavelet_coefficients(
             channels, options.wavelet, max_levels(channels.shape[:2]), options.extension

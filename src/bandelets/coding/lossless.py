@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..format.fields import DEFAULT_WAVELET, LOSSLESS
+from ..format.fields import DEFAULT_WAVELET, LOSSLESS, Kind
 from ..format.header import HEADER_BYTES, Header, implied_options, pack
 from .coefficients import median_of
 from .rangecoder import (
@@ -426,7 +426,7 @@ def samples_of(array, kind: str, depth: int) -> tuple[np.ndarray, int] | None:
 
     array = np.asarray(array)
     given = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(array.dtype)
-    if kind == "normal-map" and given is not None and depth in (0, given):
+    if kind == Kind.NORMAL_MAP and given is not None and depth in (0, given):
         values, depth = array, given  # the samples themselves: no float copy of them
     else:
         values, depth = integer_samples(array, kind, depth)
@@ -435,8 +435,8 @@ def samples_of(array, kind: str, depth: int) -> tuple[np.ndarray, int] | None:
     values = values[..., None] if values.ndim == 2 else values
     channels = values.shape[2] if values.ndim == 3 else 0
     if (
-        kind == "geometry-image"
-        or not (1 <= channels <= 4 and (kind == "image" or channels in (2, 3)))
+        kind == Kind.GEOMETRY_IMAGE
+        or not (1 <= channels <= 4 and (kind == Kind.IMAGE or channels in (2, 3)))
         or values.shape[0] * values.shape[1] < 2
     ):
         return None
@@ -460,13 +460,13 @@ def encode_file(samples: np.ndarray, kind: str, depth: int, budget: int | None =
         levels=1,
         threshold=1.0,
         depth=depth,
-        layout="xy" if kind == "normal-map" and channels == 2 else "xyz",
+        layout="xy" if kind == Kind.NORMAL_MAP and channels == 2 else "xyz",
         **implied_options(kind, channels),
     )
     room = None if budget is None else budget - HEADER_BYTES
     if room is not None and room < 0:
         return None
-    stream = encode_samples(samples, depth, room, normals=kind == "normal-map")
+    stream = encode_samples(samples, depth, room, normals=kind == Kind.NORMAL_MAP)
     return None if stream is None else pack(header, (b"", b"", stream))
 
 

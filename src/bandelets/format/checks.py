@@ -11,7 +11,7 @@ import numbers
 
 import numpy as np
 
-from .fields import KINDS, MAX_MEMORY, MAX_THRESHOLD, MIN_THRESHOLD, TRANSFORMS, TRANSFORMS_1D, WAVELETS
+from .fields import KINDS, MAX_MEMORY, MAX_THRESHOLD, MIN_THRESHOLD, TRANSFORMS, TRANSFORMS_1D, WAVELETS, Kind
 from .limits import check_encodable
 
 __all__ = ["check_image", "check_options", "check_targets", "check_threshold"]
@@ -37,7 +37,7 @@ def check_image(array, kind: str, max_memory: int = MAX_MEMORY) -> np.ndarray:
         raise ValueError(f"expected an H x W or H x W x C array with 1 to 4 channels, got shape {x.shape}")
     if x.shape[0] * x.shape[1] < 2:
         raise ValueError(f"image is too small ({x.shape[1]} x {x.shape[0]} pixels)")
-    if kind != "image" and x.shape[2] != 3:
+    if kind != Kind.IMAGE and x.shape[2] != 3:
         raise ValueError(f"a {kind} needs 3 channels, got {x.shape[2]}")
     check_encodable(*x.shape, max_memory, tile=0)
     if not np.all(np.isfinite(x)):
@@ -64,7 +64,7 @@ def check_targets(kind: str, **targets) -> None:
     name, value = next((k, v) for k, v in targets.items() if v is not None)
     if not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    if name == "max_angle" and kind != "normal-map":
+    if name == "max_angle" and kind != Kind.NORMAL_MAP:
         raise ValueError("max_angle applies to normal maps only")
     if name == "threshold":
         check_threshold(value)

@@ -51,7 +51,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .fields import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError
+from .fields import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError, Kind, Layout
 from .header import Header, unpack
 
 __all__ = [
@@ -185,7 +185,7 @@ def read(data: bytes, *, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLE
 
 def output_of(header: Header) -> tuple:
     """What a tile's decoded array is made of, which every tile of a file shares."""
-    channels = 3 if header.kind == "normal-map" and header.layout != "xy" else header.channels
+    channels = 3 if header.kind == Kind.NORMAL_MAP and header.layout != Layout.XY else header.channels
     return header.kind, header.layout, header.depth, channels
 
 

@@ -217,14 +217,14 @@ class Header:
         # the decoder reads.
         # (A normal map's weight is implied, not stored: it stays as NORMAL_MAP_WEIGHT says.)
         object.__setattr__(self, "threshold", _single(self.threshold))
-        if self.kind == "geometry-image":
+        if self.kind == Kind.GEOMETRY_IMAGE:
             object.__setattr__(self, "normal_weight", _single(self.normal_weight))
 
 
 def implied_options(kind: str, channels: int) -> dict:
     """The fields of :class:`Header` that the file does not store for ``kind`` (any kind but a
     geometry image) and ``channels``: local frames for a normal map of three channels."""
-    if kind == "normal-map" and channels == 3:
+    if kind == Kind.NORMAL_MAP and channels == 3:
         return {"frames": True, "normal_weight": NORMAL_MAP_WEIGHT}
     return {}
 
@@ -235,7 +235,7 @@ def streams_offset(data: bytes) -> int:
     if len(data) < _FIXED.size:
         raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
     start = _varints(data, _FIXED.size, 5)[1]
-    if data[5] == KIND_CODES["geometry-image"]:
+    if data[5] == KIND_CODES[Kind.GEOMETRY_IMAGE]:
         start = _varints(data, start + _GEOMETRY.size, 1)[1]
     return start
 
@@ -282,7 +282,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.threshold,
     )
     body += b"".join(_varint(n) for n in (header.height, header.width, *map(len, streams)))
-    if header.layout != "xyz" and (header.kind, header.channels) != ("normal-map", 2):
+    if header.layout != Layout.XYZ and (header.kind, header.channels) != (Kind.NORMAL_MAP, 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.folded and not _can_fold(
         header.kind, header.channels, header.transform, header.levels, header.height, header.width
@@ -290,7 +290,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         raise ValueError(f"only a square normal map of 3 channels, unpadded, can be folded: {header}")
     if header.riesz and not _can_turn(header.kind, header.channels, header.transform):
         raise ValueError(f"only a lossy normal map of 2 channels can be coded as its Riesz pair: {header}")
-    if header.kind != "geometry-image":  # its options are not stored, so they must be the implied ones
+    if header.kind != Kind.GEOMETRY_IMAGE:  # its options are not stored, so they must be the implied ones
         defaults = {
             "extension": Header.extension,
             "frames": Header.frames,
@@ -302,7 +302,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"a {header.kind} of {header.channels} channels has no choice of extension, frames, "
                 f"normal weight or mesh vertices: {header}"
             )
-    if header.kind == "geometry-image":
+    if header.kind == Kind.GEOMETRY_IMAGE:
         body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
         body += _varint(header.mesh_vertices)
     body += b"".join(streams)
@@ -342,14 +342,14 @@ def _consistency(
     return [
         (kind is not None, f"unknown kind code {kind_code}"),
         (
-            kind in (None, "image") or channels == 3 or (kind == "normal-map" and channels == 2),
+            kind in (None, "image") or channels == 3 or (kind == Kind.NORMAL_MAP and channels == 2),
             f"a {kind} needs 3 channels{' (or 2)' if kind == 'normal-map' else ''}, the file has {channels}",
         ),
         (transform is not None, f"unknown transform code {transform_code}"),
         (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
         (depth is not None, f"bad sample depth code {depth_code}"),
         (
-            layout == "xyz" or (layout is not None and kind == "normal-map" and channels == 2),
+            layout == Layout.XYZ or (layout is not None and kind == Kind.NORMAL_MAP and channels == 2),
             f"bad layout code {layout_code} for a {kind} of {channels} channels",
         ),
         (along is not None, f"unknown 1D transform code {along_code}"),
@@ -368,7 +368,7 @@ def _consistency(
             "stream lengths do not match the file size",
         ),
         (
-            lifting == 0 or (wavelet == "cdf97" and kind != "geometry-image"),
+            lifting == 0 or (wavelet == "cdf97" and kind != Kind.GEOMETRY_IMAGE),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
         ),
         (
@@ -387,7 +387,7 @@ def _consistency(
             transform != LOSSLESS
             or (
                 depth in (8, 16)
-                and kind != "geometry-image"
+                and kind != Kind.GEOMETRY_IMAGE
                 and (levels, threshold, restoration, filtered, lifting) == (1, 1.0, 0, 0, 0)
                 and lengths[0] == lengths[1] == 0
             ),
@@ -450,7 +450,7 @@ def unpack(
     layout = _LAYOUT_OF.get(layout_code)
     kind, transform = _KIND_OF.get(kind_code), _TRANSFORM_OF.get(transform_code)
     wavelet, along = _WAVELET_OF.get(wavelet_code), _TRANSFORM_1D_OF.get(along_code)
-    if kind == "geometry-image":
+    if kind == Kind.GEOMETRY_IMAGE:
         if len(body) < start + _GEOMETRY.size:
             raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
         stored = _GEOMETRY.unpack_from(body, start)
@@ -467,7 +467,7 @@ def unpack(
             raise FormatError(f"corrupt .bdl file: {message}")
     if not 1 <= levels <= MAX_LEVELS:
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
-    if kind == "geometry-image":
+    if kind == Kind.GEOMETRY_IMAGE:
         options = _geometry_options(*stored, vertices, wavelet, levels, height, width)
     else:
         options = implied_options(kind, channels)
@@ -511,7 +511,7 @@ def _riesz_code(riesz: int) -> int:
 
 def _can_turn(kind: str, channels: int, transform: str) -> bool:
     """Whether a file of these fields may be coded as a Riesz pair (:attr:`Header.riesz`)."""
-    return kind == "normal-map" and channels == 2 and transform != LOSSLESS
+    return kind == Kind.NORMAL_MAP and channels == 2 and transform != LOSSLESS
 
 
 def _can_fold(kind: str, channels: int, transform: str, levels: int, height: int, width: int) -> bool:
@@ -519,7 +519,7 @@ def _can_fold(kind: str, channels: int, transform: str, levels: int, height: int
     three channels, square, its side a multiple of ``2**levels`` (not padded: the folds are the
     border of the image the restoration sees)."""
     return (
-        kind == "normal-map"
+        kind == Kind.NORMAL_MAP
         and channels == 3
         and transform != LOSSLESS
         and height == width

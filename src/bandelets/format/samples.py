@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .fields import Kind
+
 __all__ = ["as_read", "from_samples", "integer_samples", "to_samples"]
 
 
 def to_samples(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
     """Values as unsigned samples of ``depth`` bits (8 or 16): ``[0, 1]`` for images, ``[-1, 1]``
     for normal maps (``(v + 1) / 2``), rounded and clipped."""
-    values = (values + 1.0) / 2.0 if kind == "normal-map" else values
+    values = (values + 1.0) / 2.0 if kind == Kind.NORMAL_MAP else values
     top = 2**depth - 1
     return np.clip(np.rint(values * top), 0, top).astype(np.uint8 if depth == 8 else np.uint16)
 
@@ -24,7 +26,7 @@ def to_samples(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
 def from_samples(pixels: np.ndarray, kind: str, depth: int) -> np.ndarray:
     """Float64 values of unsigned samples of ``depth`` bits (the inverse of :func:`to_samples`)."""
     values = pixels.astype(np.float64) / (2**depth - 1)
-    return 2.0 * values - 1.0 if kind == "normal-map" else values
+    return 2.0 * values - 1.0 if kind == Kind.NORMAL_MAP else values
 
 
 def as_read(values: np.ndarray, kind: str, depth: int) -> np.ndarray:
@@ -37,7 +39,7 @@ def integer_samples(values: np.ndarray, kind: str, depth: int = 0) -> tuple[np.n
     """A normal map's ``uint8`` / ``uint16`` samples as values (as PNG samples) and their depth;
     ``ValueError`` for another integer type, which has no agreed scale, or a ``depth`` that
     disagrees. Floats, and integers of any other kind, are returned as they are."""
-    if kind != "normal-map" or values.dtype.kind not in "uib":
+    if kind != Kind.NORMAL_MAP or values.dtype.kind not in "uib":
         return values, depth
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(values.dtype)
     if bits is None:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..format.fields import Kind
 from ..format.limits import MAX_MEMORY, check_encodable
 from ..format.samples import as_read, from_samples, integer_samples, to_samples
 from .floatformats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
@@ -222,7 +223,7 @@ def write_array(path: str | os.PathLike, array: np.ndarray, kind: str, depth: in
     else:
         import imagecodecs
 
-        if kind == "normal-map" and array.ndim == 3 and array.shape[2] == 2:
+        if kind == Kind.NORMAL_MAP and array.ndim == 3 and array.shape[2] == 2:
             from ..transform.normals import with_z
 
             array = with_z(array)

@@ -28,6 +28,7 @@ from imageio.core.v3_plugin_api import ImageProperties, PluginV3
 from ..codec.decoder import check, decode
 from ..codec.encoder import encode
 from ..format.container import header_of
+from ..format.fields import Kind, Layout
 
 __all__ = ["BandeletsPlugin", "register"]
 
@@ -70,7 +71,7 @@ class BandeletsPlugin(PluginV3):
     def properties(self, *, index: int | None = None) -> ImageProperties:
         header = header_of(self._data)
         channels = header.channels
-        if header.kind == "normal-map" and header.layout != "xy":
+        if header.kind == Kind.NORMAL_MAP and header.layout != Layout.XY:
             channels = 3  # z is rebuilt when only x, y were coded
         shape = (header.height, header.width) + ((channels,) if channels > 1 else ())
         return ImageProperties(shape=shape, dtype=np.dtype(np.float64), n_images=None, is_batch=False)

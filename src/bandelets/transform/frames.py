@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..format.fields import Kind
 from .wavelets import subband_slices, waverec
 
 __all__ = [
@@ -177,7 +178,7 @@ def level_frames(
     wavelet: str,
     levels: int,
     extension: str,
-    kind: str = "geometry-image",
+    kind: Kind = Kind.GEOMETRY_IMAGE,
 ) -> np.ndarray:
     """The frame of every position of the detail subbands of ``level`` (1 = finest).
 
@@ -207,7 +208,7 @@ def level_frames(
         surface[..., k] = waverec(coarse, wavelet, levels, extension)
     rows = np.minimum((np.arange(h) << level) + (1 << (level - 1)), shape[0] - 1)
     cols = np.minimum((np.arange(w) << level) + (1 << (level - 1)), shape[1] - 1)
-    if kind == "normal-map":  # differences over the level's half step (one-sided on the border)
+    if kind == Kind.NORMAL_MAP:  # differences over the level's half step (one-sided on the border)
         step = 1 << (level - 1)
         right, left = np.minimum(cols + step, shape[1] - 1), np.maximum(cols - step, 0)
         down, up = np.minimum(rows + step, shape[0] - 1), np.maximum(rows - step, 0)
@@ -262,7 +263,7 @@ def to_global(
     levels: int,
     extension: str,
     weight: float,
-    kind: str = "geometry-image",
+    kind: Kind = Kind.GEOMETRY_IMAGE,
 ) -> dict[int, np.ndarray]:
     """Every level back from the local frames, coarsest first (as the decoder does), in place.
 
