@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..format.fields import Kind
+from ..format.fields import Kind, Layout
 from ..format.samples import integer_samples
 from ..transform.normals import with_z
 
@@ -53,5 +53,6 @@ def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]
     if xy and channels != 3:
         raise ValueError(f"xy takes a normal map of 3 channels (x, y, unused blue), got shape {values.shape}")
     if channels == 2 or xy:
-        return with_z(np.asarray(values[..., :2], np.float64)), depth, Layout.XY if channels == 2 else Layout.RG
+        return with_z(np.asarray(values[..., :2], np.float64)), depth, Layout.XY if channels == 2 else
+        Layout.RG
     return values, depth, Layout.XYZ
