@@ -53,6 +53,6 @@ def prepare(array, depth: int, xy: bool) -> tuple[np.ndarray | object, int, str]
     if xy and channels != 3:
         raise ValueError(f"xy takes a normal map of 3 channels (x, y, unused blue), got shape {values.shape}")
     if channels == 2 or xy:
-        return with_z(np.asarray(values[..., :2], np.float64)), depth, Layout.XY if channels == 2 else
-        Layout.RG
+        layout = Layout.XY if channels == 2 else Layout.RG
+        return with_z(np.asarray(values[..., :2], np.float64)), depth, layout
     return values, depth, Layout.XYZ
