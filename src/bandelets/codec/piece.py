@@ -367,9 +367,9 @@ class _PieceEncoder:
             goal,
             self.t_max,
             self.t_guess,
-            self.line,
-            label,
-            MIN_THRESHOLD,
+            progress=self.line,
+            label=label,
+            t_min=MIN_THRESHOLD,
         )
 
 

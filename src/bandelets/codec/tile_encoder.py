@@ -94,7 +94,7 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
                 raise ValueError(f"target of {bpp:g} bpp ({target} bytes) cannot be reached")
             model = ratecontrol.size_model(magnitudes, count)
             best = ratecontrol.for_size(
-                lambda t: encode_at(t, False, False), target, t_max, model, None, MIN_THRESHOLD
+                lambda t: encode_at(t, False, False), target, t_max, model, t_min=MIN_THRESHOLD
             )
             if options.restore or measured:  # the same tiles, restored and measured
                 best = encode_at(best.threshold, options.restore, measured)
@@ -122,9 +122,8 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
             goal,
             t_max,
             t_guess,
-            None,
-            label,
-            MIN_THRESHOLD,
+            label=label,
+            t_min=MIN_THRESHOLD,
         )
 
 
