@@ -11,15 +11,16 @@ from __future__ import annotations
 import io
 import os
 import struct
-import tempfile
 import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from . import tempfiles
 from .formats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
 from .memory import MAX_MEMORY, check_encodable
+from .stderrhold import held_stderr
 
 __all__ = [
     "SUFFIXES",
@@ -151,7 +152,8 @@ def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY)
     data = path.read_bytes()
     check(png_shape(data, path))
     try:
-        pixels = imagecodecs.png_decode(data)
+        with held_stderr():  # libpng's warnings about a file it then fails to read: not news
+            pixels = imagecodecs.png_decode(data)
     except Exception as err:  # imagecodecs raises its own error types for bad data
         raise ValueError(f"{path}: not a readable PNG file ({err})") from None
     if pixels.dtype not in (np.uint8, np.uint16):
@@ -205,6 +207,8 @@ def png_shape(data: bytes, path: str | os.PathLike) -> tuple[int, int, int]:
     width, height, depth, colour = struct.unpack_from(">IIBB", data, 16)
     if colour not in _PNG_CHANNELS or depth not in (1, 2, 4, 8, 16):
         raise ValueError(f"{path}: not a readable PNG file (bit depth {depth}, colour type {colour})")
+    if width == 0 or height == 0:
+        raise ValueError(f"{path}: not a readable PNG file (an image of {width} x {height} pixels)")
     return height, width, _PNG_CHANNELS[colour]
 
 
@@ -213,7 +217,7 @@ def write_atomic(path: str | os.PathLike, data: bytes | Callable[[str], None]) -
     (``data`` may be a function that writes a file at the path it is given)."""
     path = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+        fd, tmp = tempfiles.make(path)  # named as ours; those left by a killed run are removed
     except OSError as err:  # named after the output, not the temporary file
         raise OSError(err.errno, err.strerror, str(path)) from None
     try:
