@@ -53,7 +53,18 @@ import numpy as np
 
 from .bitstream import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError, Header, unpack
 
-__all__ = ["TILE", "MIN_TILE", "WORKERS", "Grid", "cuts", "is_tiled", "read", "pack", "header_of"]
+__all__ = [
+    "TILE",
+    "MIN_TILE",
+    "TILE_WORK",
+    "WORKERS",
+    "Grid",
+    "cuts",
+    "is_tiled",
+    "read",
+    "pack",
+    "header_of",
+]
 
 #: Default tile side: a 512 x 512 map is one tile, coded as before.
 TILE = 512
@@ -61,6 +72,16 @@ TILE = 512
 MIN_TILE = 16
 #: Tiles coded or decoded at once (threads): the machine's two cores.
 WORKERS = 2
+#: The fixed work of decoding a tile, in the units of ``max_work`` (sample-iterations of
+#: restoration, :func:`bandelets.memory.restoration_work`), counted for every tile a decode reads
+#: (issue 40): a tile costs its parsing, its range decoders and its transforms' set-up whatever its
+#: size, 0.8 to 1.4 ms of CPU, so that 4,096 tiles of 16 x 16 without restoration (a 537 KB file)
+#: took 4.1 s to decode, and 262,144 of them (8192 x 8192) minutes, with no restoration to bound.
+#: At 2**17 the default ``max_work`` admits at most 2,048 tiles (about 2 s): a 16384 x 16384 map in
+#: the default tiles of 512 (1,024 tiles) gives up half of it, an 8192 x 8192 one an eighth; smaller
+#: tiles for such sizes need a larger ``max_work`` (the encoder refuses to write what the decoder
+#: would refuse).
+TILE_WORK = 2**17
 
 _HEAD = struct.Struct("<4sBBxxIII")
 
@@ -217,12 +238,18 @@ def decode(
 
     ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds the restoration
     of the tiles decoded, all together (:func:`bandelets.memory.restoration_work`), as it bounds
-    that of an image in one piece.
+    that of an image in one piece, plus :data:`TILE_WORK` for each tile.
     """
     from .decoder import decode_parsed
     from .memory import decoder_memory, restoration_work
     from .progress import Progress
 
+    count = _tile_count(data)  # from the head alone: a 34 MB file may hold 262,144 tiles
+    if count * TILE_WORK > max_work:
+        raise FormatError(
+            f"decoding these {count} tiles is {count * TILE_WORK:.3g} units of work, above the limit of "
+            f"{max_work:.3g} (max_work)"
+        )
     grid, tiles = read(data, **limits)
     top, left, rows, cols = check_region(region, grid.height, grid.width)
     wanted = [
@@ -233,6 +260,7 @@ def decode(
         and box[1].start < left + cols
         and left < box[1].stop
     ]
+    fixed = len(wanted) * TILE_WORK
     parsed = [(box, tiles[i]()) for i, box in wanted]
     headers = [replace(h, restoration=0) if not restore else h for _, (h, _) in parsed]
     channels = _output(headers[0])[3]
@@ -240,7 +268,7 @@ def decode(
     per_tile = max(
         decoder_memory(h.height, h.width, h.channels, h.levels, h.frames, h.restoration > 0) for h in headers
     )
-    work = sum(restoration_work(h) for h in headers)
+    work = sum(restoration_work(h) for h in headers) + fixed
     if work > max_work:
         raise FormatError(
             f"restoring these {len(headers)} tiles is {work:.3g} sample-iterations of work, above the limit "
@@ -267,6 +295,22 @@ def decode(
             out[_shift(r_in, top), _shift(c_in, left)] = tile[_shift(r_in, r.start), _shift(c_in, c.start)]
             line.step()
     return out[..., 0] if channels == 1 else out
+
+
+def _tile_count(data: bytes) -> int:
+    """The tiles of a tiled file by the sizes of its head (``len(cuts(...))`` by arithmetic, no list
+    of boxes); 0 when the head is too short or out of range (:func:`read` says what is wrong)."""
+    if len(data) < _HEAD.size:
+        return 0
+    _, _, _, height, width, tile = _HEAD.unpack_from(data)
+    if not (height and width and tile >= MIN_TILE):
+        return 0
+
+    def along(size: int) -> int:
+        n = -(-size // tile)
+        return n - 1 if n > 1 and size - (n - 1) * tile < tile // 4 else n
+
+    return along(height) * along(width)
 
 
 def _shift(span: slice, by: int) -> slice:
@@ -321,6 +365,12 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
     check_encodable(
         grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, grid.tile
     )
+    fixed = len(grid.boxes) * TILE_WORK  # what the decoder counts for the tiles (TILE_WORK)
+    if fixed > options.max_work:
+        raise ValueError(
+            f"{len(grid.boxes)} tiles of {grid.tile} are {fixed:.3g} units of work to decode, above the "
+            f"limit of {options.max_work:.3g} (max_work): choose larger tiles"
+        )
     kind = options.kind
     # No loop filter: its bytes would come after the search of the threshold of every tile.
     tile_options = replace(options, progress=False, tile=grid.tile, loop_filter=False)
@@ -330,7 +380,7 @@ def encode(array, options, *, bpp=None, threshold=None, psnr=None, max_angle=Non
         earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
         # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
         # as that of one piece is (and as the decoder checks it), not max_work once per tile.
-        share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
+        share = (options.max_work - fixed) * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
         encoded = encode_with_stats(
             tile,
             replace(tile_options, restore=restore, max_work=share),
