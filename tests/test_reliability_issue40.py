@@ -236,6 +236,22 @@ def test_hostile_numbers_are_one_line_and_exit_2(argv, capsys, tmp_path, monkeyp
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("extra", [[], ["--no-lossless"]])
+def test_a_rate_target_far_above_any_file_is_met_by_the_best_file(extra, capsys, tmp_path):
+    """``--bpp 1e300``: finite, so accepted; it made the lossless coder's byte budget overflow int64
+    (a traceback from numba's typing)."""
+    png = tmp_path / "in.png"
+    png.write_bytes(_png_of(np.arange(256, dtype=np.uint8).reshape(16, 16)))
+    assert cli.main(["encode", str(png), str(tmp_path / "o.bdl"), "--bpp", "1e300", "-q", *extra]) == 0
+    assert bandelets.decode((tmp_path / "o.bdl").read_bytes()).shape == (16, 16)
+
+
+def _png_of(pixels: np.ndarray) -> bytes:
+    import imagecodecs
+
+    return imagecodecs.png_encode(pixels)
+
+
 def test_memory_sizes_keep_their_meaning():
     assert cliopts.memory_size("512") == 512 * 2**20
     assert cliopts.memory_size("4G") == 4 * 2**30 and cliopts.memory_size("1.5k") == 1536
@@ -281,6 +297,8 @@ def test_many_tiny_tiles_are_refused_at_once(side):
     start = time.process_time()
     with pytest.raises(FormatError, match="max_work"):
         bandelets.decode(data)
+    with pytest.raises(FormatError, match="max_work"):  # what `bandelets info` and `decode` read first
+        tiling.header_of(data)
     assert time.process_time() - start < 1.0
     count = (side // 16) ** 2
     assert count * tiling.TILE_WORK > MAX_WORK

@@ -51,7 +51,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .bitstream import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError, Header, unpack
+from .bitstream import (
+    FORMAT_VERSION,
+    MAGIC,
+    MAX_SAMPLES,
+    MAX_SIDE,
+    MAX_WORK,
+    TILED_CODE,
+    FormatError,
+    Header,
+    unpack,
+)
 
 __all__ = [
     "TILE",
@@ -191,11 +201,13 @@ def _output(header: Header) -> tuple:
     return header.kind, header.layout, header.depth, channels
 
 
-def header_of(data: bytes, **limits) -> Header:
+def header_of(data: bytes, max_work: int = MAX_WORK, **limits) -> Header:
     """The header of a .bdl file, tiled or not: for a tiled file, that of its first tile with the
-    whole image's size and the most restoration iterations of any tile."""
+    whole image's size and the most restoration iterations of any tile (refused, as by
+    :func:`decode`, when its tiles are more than ``max_work`` allows: every tile is parsed)."""
     if not is_tiled(data):
         return unpack(data, **limits)[0]
+    _check_tile_count(data, max_work)
     grid, tiles = read(data, **limits)
     headers = [tile()[0] for tile in tiles]
     return replace(
@@ -244,12 +256,7 @@ def decode(
     from .memory import decoder_memory, restoration_work
     from .progress import Progress
 
-    count = _tile_count(data)  # from the head alone: a 34 MB file may hold 262,144 tiles
-    if count * TILE_WORK > max_work:
-        raise FormatError(
-            f"decoding these {count} tiles is {count * TILE_WORK:.3g} units of work, above the limit of "
-            f"{max_work:.3g} (max_work)"
-        )
+    _check_tile_count(data, max_work)  # from the head alone: a 34 MB file may hold 262,144 tiles
     grid, tiles = read(data, **limits)
     top, left, rows, cols = check_region(region, grid.height, grid.width)
     wanted = [
@@ -295,6 +302,16 @@ def decode(
             out[_shift(r_in, top), _shift(c_in, left)] = tile[_shift(r_in, r.start), _shift(c_in, c.start)]
             line.step()
     return out[..., 0] if channels == 1 else out
+
+
+def _check_tile_count(data: bytes, max_work: int) -> None:
+    """:class:`FormatError` if the tiles of ``data`` are more than ``max_work`` allows (:data:`TILE_WORK`)."""
+    count = _tile_count(data)
+    if count * TILE_WORK > max_work:
+        raise FormatError(
+            f"decoding these {count} tiles is {count * TILE_WORK:.3g} units of work, above the limit of "
+            f"{max_work:.3g} (max_work)"
+        )
 
 
 def _tile_count(data: bytes) -> int:
