@@ -19,6 +19,8 @@ import time
 import warnings
 from pathlib import Path
 
+from bandelets.cliopts import memory_size, natural_int, positive_float, positive_int, rate_list
+
 from .bitstream import (
     DEFAULT_NORMAL_WEIGHT,
     DEFAULT_TRANSFORM_1D,
@@ -29,7 +31,6 @@ from .bitstream import (
     TRANSFORMS_1D,
     WAVELETS,
 )
-from .cliopts import memory_size, natural_int, positive_float, positive_int, rate_list
 
 __all__ = ["main"]
 

@@ -11,6 +11,8 @@ from itertools import islice
 
 import numpy as np
 
+from bandelets.precisions import compile_both
+
 from . import directional, entropy, frames, loopfilter, lossless, metrics, restoration, riesz, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
@@ -155,6 +157,7 @@ def decoded_bins(
 def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):
     """The channels after 0, 1, 2, ... restoration iterations (:func:`bandelets.restoration.iterate`)."""
     unit = header.kind == "normal-map" and header.channels == 3
+    compile_both(restoration, riesz)  # the file chooses a precision: both compiled at once (issue 40)
     return restoration.iterate(
         quantized,
         header.threshold,

@@ -17,10 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import tempfiles
+from bandelets import tempfiles
+from bandelets.stderrhold import held_stderr
+
 from .formats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
 from .memory import MAX_MEMORY, check_encodable
-from .stderrhold import held_stderr
 
 __all__ = [
     "SUFFIXES",

@@ -10,13 +10,15 @@ threshold of 1e30 cost 13.7 s of CPU, outside any work bound, in every process w
 read-only kernel cache.
 
 :func:`compile_both` runs each of them once on a few samples of each precision, the first time
-the decoder needs either: both are compiled (or loaded from numba's cache) with the others, so
-which one a file asks for changes nothing of the time its decode takes.
+the decoder restores a file or turns a Riesz pair (:func:`bandelets.decoder.restorations`): both
+are compiled (or loaded from numba's cache) with the others, so which one a file asks for changes
+nothing of the time its decode takes.
 """
 
 from __future__ import annotations
 
 import threading
+from types import ModuleType
 
 import numpy as np
 
@@ -26,15 +28,15 @@ _DONE: list[bool] = []
 _LOCK = threading.Lock()
 
 
-def compile_both() -> None:
-    """Run the kernels of both precisions on tiny arrays, once per process (thread-safe)."""
+def compile_both(restoration: ModuleType, riesz: ModuleType) -> None:
+    """Run the kernels of both precisions on tiny arrays, once per process (thread-safe);
+    ``restoration`` and ``riesz``: the modules :mod:`bandelets.restoration` and
+    :mod:`bandelets.riesz` (given by the caller, wherever the package keeps them)."""
     if _DONE:
         return
     with _LOCK:
         if _DONE:
             return
-        from . import restoration, riesz
-
         for dtype in (np.float32, np.float64):
             x = np.zeros((3, 4, 4), dtype)
             out, previous = np.zeros_like(x), np.zeros_like(x)

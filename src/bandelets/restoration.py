@@ -588,9 +588,6 @@ def iterate(
     ``T`` (float64 otherwise). Each array is overwritten by the next step (the buffers are
     reused): copy one to keep it.
     """
-    from .precisions import compile_both  # a file chooses a precision: both are compiled (issue 40)
-
-    compile_both()
     x = np.ascontiguousarray(synthesis(np.array([dequantize(b, threshold) for b in q])))
     yield x
     if min(x.shape[1:]) < 2:  # no gradient to follow
