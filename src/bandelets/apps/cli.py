@@ -30,6 +30,7 @@ from ..format.fields import (
     WAVELETS,
     Kind,
 )
+from .cliopts import memory_size, natural_int, positive_float, positive_int, rate_list
 
 __all__ = ["main"]
 
@@ -66,14 +67,14 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help=f"{FORMATS}: integer samples map to [0, 1] ([-1, 1] for normal maps)")
     p.add_argument("output", help="the .bdl file to write")
     target = p.add_mutually_exclusive_group()
-    target.add_argument("--bpp", type=float, help="target rate in bits per pixel (default 1)")
-    target.add_argument("--threshold", type=float, help="quantization threshold T")
+    target.add_argument("--bpp", type=positive_float, help="target rate in bits per pixel (default 1)")
+    target.add_argument("--threshold", type=positive_float, help="quantization threshold T")
     target.add_argument(
-        "--psnr", type=float, help="target PSNR in dB, of the decoded image at the input's bit depth"
+        "--psnr", type=positive_float, help="target PSNR in dB, of the decoded image at the input's bit depth"
     )
     target.add_argument(
         "--max-angle",
-        type=float,
+        type=positive_float,
         metavar="DEG",
         help="normal maps: the largest 99th percentile of the angle between input and decoded normals, "
         "in degrees (the tail, where creases show artefacts; the mean follows --psnr)",
@@ -143,7 +144,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--tile",
-        type=int,
+        type=natural_int,
         default=0,
         metavar="N",
         help="code an image with a side above N pixels in independent tiles of about N x N, two at a time "
@@ -171,7 +172,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("input")
 
     p = sub.add_parser("demo", help="compress a generated normal map with bandelets and wavelets")
-    p.add_argument("--size", type=int, default=512, help="side of the generated map (default 512)")
+    p.add_argument("--size", type=positive_int, default=512, help="side of the generated map (default 512)")
     p.add_argument("--rates", default="0.25,0.5,1,2", help="target bpp list (default 0.25,0.5,1,2)")
     p.add_argument("--out", default="bandelets-demo", help="folder for the files (default bandelets-demo)")
 
@@ -196,7 +197,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--size",
-        type=int,
+        type=positive_int,
         help="side of the geometry image of meshes (default: chosen for each rate, as mesh-encode does)",
     )
     p.add_argument("--out", default="rd", help="folder for the files, rd.csv and rd.png (default rd)")
@@ -212,21 +213,21 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("output", help="the .bdl file to write")
     p.add_argument(
         "--size",
-        type=int,
+        type=positive_int,
         help="side of the geometry image, even (default: the largest of 64, 128, 256, 512, 1024 that "
         "gets at least 0.1 bit per pixel of a --bits-per-vertex or --bytes target; 256 with --bpp)",
     )
     target = p.add_mutually_exclusive_group()
-    target.add_argument("--bpp", type=float, help="bits per geometry-image pixel (default 1)")
-    target.add_argument("--bits-per-vertex", type=float, help="bits per vertex of the input mesh")
-    target.add_argument("--bytes", type=int, help="size of the whole file")
+    target.add_argument("--bpp", type=positive_float, help="bits per geometry-image pixel (default 1)")
+    target.add_argument("--bits-per-vertex", type=positive_float, help="bits per vertex of the input mesh")
+    target.add_argument("--bytes", type=positive_int, help="size of the whole file")
     p.add_argument("--transform", choices=TRANSFORMS, default="bandelet")
     p.add_argument(
         "--no-frames", action="store_true", help="code the positions as they are, not in local frames"
     )
     p.add_argument(
         "--normal-weight",
-        type=float,
+        type=positive_float,
         default=DEFAULT_NORMAL_WEIGHT,
         metavar="W",
         help="precision of the normal component over the tangential ones in local frames "
@@ -252,7 +253,7 @@ def _build_parser() -> argparse.ArgumentParser:
     size = p.add_mutually_exclusive_group()
     size.add_argument(
         "--vertices",
-        type=int,
+        type=positive_int,
         metavar="N",
         help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file)",
     )
@@ -266,7 +267,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", nargs="?", help="the .npy to write (n x n x 3 float32 positions)")
-    p.add_argument("--size", type=int, default=256, help="side of the image, even (default 256)")
+    p.add_argument("--size", type=positive_int, default=256, help="side of the image, even (default 256)")
     p.add_argument(
         "--report",
         action="store_true",
@@ -280,35 +281,27 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="files, folders (recursive) and globs")
     p.add_argument("--out", required=True, metavar="DIR", help="folder of the .bdl files and the report")
     target = p.add_mutually_exclusive_group()
-    target.add_argument("--bpp", type=float, help="target rate of the images (default 1), or of meshes")
-    target.add_argument("--psnr", type=float, help="target PSNR of the images in dB")
-    target.add_argument("--threshold", type=float, help="quantization threshold T of the images")
+    target.add_argument(
+        "--bpp", type=positive_float, help="target rate of the images (default 1), or of meshes"
+    )
+    target.add_argument("--psnr", type=positive_float, help="target PSNR of the images in dB")
+    target.add_argument("--threshold", type=positive_float, help="quantization threshold T of the images")
     p.add_argument("--kind", choices=KINDS, default="image", help="kind of the image inputs (default image)")
-    p.add_argument("--bits-per-vertex", type=float, metavar="V", help="target of the meshes")
-    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default one per core)")
+    p.add_argument("--bits-per-vertex", type=positive_float, metavar="V", help="target of the meshes")
+    p.add_argument(
+        "--workers", type=positive_int, metavar="N", help="local worker processes (default one per core)"
+    )
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--report", metavar="FILE", help="report .csv or .parquet (default DIR/report.csv)")
     p.add_argument("-f", "--force", action="store_true", help="redo files an earlier run left up to date")
     return parser
 
 
-def _memory(text: str) -> int:
-    """Bytes of a ``--max-memory`` value: MiB, or a number with a K, M or G suffix."""
-    scale = {"K": 2**10, "M": 2**20, "G": 2**30}.get(text[-1:].upper())
-    try:
-        value = float(text[:-1] if scale else text) * (scale or 2**20)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a size such as 512M or 4G, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"the memory limit must be positive, got {text!r}")
-    return int(value)
-
-
 def _common(p: argparse.ArgumentParser) -> None:
     """Options of encode and decode besides their own."""
     p.add_argument(
         "--max-memory",
-        type=_memory,
+        type=memory_size,
         default=2 * 2**30,
         metavar="SIZE",
         help="refuse an image whose coding would need more memory (MiB, or with K, M, G; default 2G)",
@@ -517,17 +510,14 @@ def _demo(args) -> None:
     _working()
     from .demo import run_demo
 
-    rates = [float(r) for r in args.rates.split(",") if r.strip()]
+    rates = rate_list(args.rates, "--rates")
     if args.size < 16:
         raise ValueError(f"--size must be at least 16, got {args.size}")
     run_demo(args.size, rates, Path(args.out), progress=sys.stderr.isatty())
 
 
 def _numbers(text: str, option: str) -> list[float]:
-    try:
-        return [float(r) for r in text.split(",") if r.strip()]
-    except ValueError:
-        raise ValueError(f"{option} must be a comma-separated list of numbers, got {text!r}") from None
+    return rate_list(text, option)
 
 
 def _rd(args) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..coding import lossless, rangecoder
 from ..coding.image import code_image, code_lifting, new_coders
-from ..format.container import WORKERS, check_region, is_tiled, output_of, read
+from ..format.container import TILE_WORK, WORKERS, check_region, check_tile_count, is_tiled, output_of, read
 from ..format.fields import (
     FORMAT_VERSION,
     LOSSLESS,
@@ -29,6 +29,7 @@ from ..format.header import Header, unpack
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
+from ..restore.precisions import compile_both
 from ..runtime.progress import Progress
 from ..runtime.threads import CORES, thread_map, workers
 from ..transform import directional, frames, riesz
@@ -190,6 +191,7 @@ def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifti
     """The channels after 0, 1, 2, ... restoration iterations
     (:func:`bandelets.restore.restoration.iterate`)."""
     unit = header.kind == Kind.NORMAL_MAP and header.channels == 3
+    compile_both(restoration, riesz)  # the file chooses a precision: both compiled at once (issue 40)
     return restoration.iterate(
         quantized,
         header.threshold,
@@ -302,9 +304,10 @@ def _decode_tiles(
 
     ``max_memory`` bounds the output and the tiles in flight; ``max_work`` bounds the restoration
     of the tiles decoded, all together (:func:`bandelets.format.limits.restoration_work`), as it bounds
-    that of an image in one piece.
+    that of an image in one piece, plus :data:`~bandelets.format.container.TILE_WORK` for each tile.
     """
 
+    check_tile_count(data, max_work)  # from the head alone: a 34 MB file may hold 262,144 tiles
     grid, tiles = read(data, **limits)
     top, left, rows, cols = check_region(region, grid.height, grid.width)
     wanted = [
@@ -315,6 +318,7 @@ def _decode_tiles(
         and box[1].start < left + cols
         and left < box[1].stop
     ]
+    fixed = len(wanted) * TILE_WORK
     parsed = [(box, tiles[i]()) for i, box in wanted]
     headers = [replace(h, restoration=0) if not restore else h for _, (h, _) in parsed]
     channels = output_of(headers[0])[3]
@@ -322,7 +326,7 @@ def _decode_tiles(
     per_tile = max(
         decoder_memory(h.height, h.width, h.channels, h.levels, h.frames, h.restoration > 0) for h in headers
     )
-    work = sum(restoration_work(h) for h in headers)
+    work = sum(restoration_work(h) for h in headers) + fixed
     if work > max_work:
         raise FormatError(
             f"restoring these {len(headers)} tiles is {work:.3g} sample-iterations of work, above the limit "

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import metrics
-from ..format.container import WORKERS, Grid, pack
+from ..format.container import TILE_WORK, WORKERS, Grid, pack
 from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD, Kind, Layout
 from ..format.header import HEADER_BYTES
 from ..format.limits import check_encodable, tile_side
@@ -54,6 +54,12 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
     check_encodable(
         grid.height, grid.width, source.shape[2] if source.ndim == 3 else 1, options.max_memory, grid.tile
     )
+    fixed = len(grid.boxes) * TILE_WORK  # what the decoder counts for the tiles (TILE_WORK)
+    if fixed > options.max_work:
+        raise ValueError(
+            f"{len(grid.boxes)} tiles of {grid.tile} are {fixed:.3g} units of work to decode, above the "
+            f"limit of {options.max_work:.3g} (max_work): choose larger tiles"
+        )
     kind = options.kind
 
     with Progress(options.progress) as line:
@@ -146,7 +152,8 @@ def _coded_tile(
     earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
     # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
     # as that of one piece is (and as the decoder checks it), not max_work once per tile.
-    share = options.max_work * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
+    fixed = len(grid.boxes) * TILE_WORK
+    share = (options.max_work - fixed) * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
     encoded = encode_piece(
         tile,
         replace(tile_options, restore=restore, max_work=share),

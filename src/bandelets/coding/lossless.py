@@ -337,7 +337,7 @@ def _run(coder: Coder, x: np.ndarray, depth: int, blend: bool, unit: bool, budge
     )
     row_bytes = x.shape[0] * x.shape[2] * _worst_bytes(depth)
     chunk = max(1, 2**20 // row_bytes)
-    limit = np.iinfo(np.int64).max if budget is None else budget
+    limit = np.iinfo(np.int64).max if budget is None else min(budget, np.iinfo(np.int64).max)  # bpp=1e300
     for start in range(0, x.shape[1], chunk):
         stop = min(start + chunk, x.shape[1])
         coder.reserve(row_bytes * (stop - start))

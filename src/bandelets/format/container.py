@@ -51,15 +51,27 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .fields import FORMAT_VERSION, MAGIC, MAX_SAMPLES, MAX_SIDE, TILED_CODE, FormatError, Kind, Layout
+from .fields import (
+    FORMAT_VERSION,
+    MAGIC,
+    MAX_SAMPLES,
+    MAX_SIDE,
+    MAX_WORK,
+    TILED_CODE,
+    FormatError,
+    Kind,
+    Layout,
+)
 from .header import Header, unpack
 
 __all__ = [
     "MIN_TILE",
     "TILE",
+    "TILE_WORK",
     "WORKERS",
     "Grid",
     "check_region",
+    "check_tile_count",
     "cuts",
     "header_of",
     "is_tiled",
@@ -80,6 +92,17 @@ MIN_TILE = 16
 #: Tiles coded or decoded at once (threads): the machine's two cores.
 WORKERS = 2
 
+
+#: The fixed work of decoding a tile, in the units of ``max_work`` (sample-iterations of
+#: restoration, :func:`bandelets.format.limits.restoration_work`), counted for every tile a decode
+#: reads (issue 40): a tile costs its parsing, its range decoders and its transforms' set-up whatever
+#: its size, 0.8 to 1.4 ms of CPU, so that 4,096 tiles of 16 x 16 without restoration (a 537 KB file)
+#: took 4.1 s to decode, and 262,144 of them (8192 x 8192) minutes, with no restoration to bound.
+#: At 2**17 the default ``max_work`` admits at most 2,048 tiles (about 2 s): a 16384 x 16384 map in
+#: the default tiles of 512 (1,024 tiles) gives up half of it, an 8192 x 8192 one an eighth; smaller
+#: tiles for such sizes need a larger ``max_work`` (the encoder refuses to write what the decoder
+#: would refuse).
+TILE_WORK = 2**17
 
 _HEAD = struct.Struct("<4sBBxxIII")
 
@@ -189,11 +212,13 @@ def output_of(header: Header) -> tuple:
     return header.kind, header.layout, header.depth, channels
 
 
-def header_of(data: bytes, **limits) -> Header:
+def header_of(data: bytes, max_work: int = MAX_WORK, **limits) -> Header:
     """The header of a .bdl file, tiled or not: for a tiled file, that of its first tile with the
-    whole image's size and the most restoration iterations of any tile."""
+    whole image's size and the most restoration iterations of any tile (refused, as by
+    :func:`bandelets.decode`, when its tiles are more than ``max_work`` allows: every tile is parsed)."""
     if not is_tiled(data):
         return unpack(data, **limits)[0]
+    check_tile_count(data, max_work)
     grid, tiles = read(data, **limits)
     headers = [tile()[0] for tile in tiles]
     return replace(
@@ -218,3 +243,30 @@ def check_region(region, height: int, width: int) -> tuple[int, int, int, int]:
     ):
         raise ValueError(f"region {region!r} is not a box inside the {width} x {height} image")
     return top, left, rows, cols
+
+
+def check_tile_count(data: bytes, max_work: int) -> None:
+    """:class:`FormatError` if the tiles of ``data`` are more than ``max_work`` allows (:data:`TILE_WORK`),
+    from the container's head alone: a 34 MB file may hold 262,144 tiles."""
+    count = _tile_count(data)
+    if count * TILE_WORK > max_work:
+        raise FormatError(
+            f"decoding these {count} tiles is {count * TILE_WORK:.3g} units of work, above the limit of "
+            f"{max_work:.3g} (max_work)"
+        )
+
+
+def _tile_count(data: bytes) -> int:
+    """The tiles of a tiled file by the sizes of its head (``len(cuts(...))`` by arithmetic, no list
+    of boxes); 0 when the head is too short or out of range (:func:`read` says what is wrong)."""
+    if len(data) < _HEAD.size:
+        return 0
+    _, _, _, height, width, tile = _HEAD.unpack_from(data)
+    if not (height and width and tile >= MIN_TILE):
+        return 0
+
+    def along(size: int) -> int:
+        n = -(-size // tile)
+        return n - 1 if n > 1 and size - (n - 1) * tile < tile // 4 else n
+
+    return along(height) * along(width)

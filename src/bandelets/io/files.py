@@ -11,7 +11,6 @@ from __future__ import annotations
 import io
 import os
 import struct
-import tempfile
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -21,7 +20,9 @@ import numpy as np
 from ..format.fields import Kind
 from ..format.limits import MAX_MEMORY, check_encodable
 from ..format.samples import as_read, from_samples, integer_samples, to_samples
+from . import tempfiles
 from .floatformats import exr_shape, read_exr, read_tiff, tiff_shape, write_exr, write_tiff
+from .stderrhold import held_stderr
 
 __all__ = [
     "MESH_SUFFIXES",
@@ -119,7 +120,8 @@ def read_array(path: str | os.PathLike, kind: str, max_memory: int = MAX_MEMORY)
     data = path.read_bytes()
     check(png_shape(data, path))
     try:
-        pixels = imagecodecs.png_decode(data)
+        with held_stderr():  # libpng's warnings about a file it then fails to read: not news
+            pixels = imagecodecs.png_decode(data)
     except Exception as err:  # imagecodecs raises its own error types for bad data
         raise ValueError(f"{path}: not a readable PNG file ({err})") from None
     if pixels.dtype not in (np.uint8, np.uint16):
@@ -173,6 +175,8 @@ def png_shape(data: bytes, path: str | os.PathLike) -> tuple[int, int, int]:
     width, height, depth, colour = struct.unpack_from(">IIBB", data, 16)
     if colour not in _PNG_CHANNELS or depth not in (1, 2, 4, 8, 16):
         raise ValueError(f"{path}: not a readable PNG file (bit depth {depth}, colour type {colour})")
+    if width == 0 or height == 0:
+        raise ValueError(f"{path}: not a readable PNG file (an image of {width} x {height} pixels)")
     return height, width, _PNG_CHANNELS[colour]
 
 
@@ -181,7 +185,7 @@ def write_atomic(path: str | os.PathLike, data: bytes | Callable[[str], None]) -
     (``data`` may be a function that writes a file at the path it is given)."""
     path = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+        fd, tmp = tempfiles.make(path)  # named as ours; those left by a killed run are removed
     except OSError as err:  # named after the output, not the temporary file
         raise OSError(err.errno, err.strerror, str(path)) from None
     try:

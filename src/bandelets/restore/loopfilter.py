@@ -132,17 +132,25 @@ def _feature(x, c, o, dy, dx, i, j, rows, cols, channels, bound, folded):
 
 @njit(cache=True, nogil=True, inline="always")
 def _across(i, j, rows, cols):
-    """The pixel at ``(i, j)``, at most a side past the border of an octahedral geometry image,
-    glued across each edge to itself reversed: row ``-k`` is row ``k - 1`` mirrored, and so on."""
-    if i < 0:
-        i, j = -1 - i, cols - 1 - j
-    elif i >= rows:
-        i, j = 2 * rows - 1 - i, cols - 1 - j
-    if j < 0:
-        i, j = rows - 1 - i, -1 - j
-    elif j >= cols:
-        i, j = rows - 1 - i, 2 * cols - 1 - j
-    return i, j
+    """The pixel at ``(i, j)``, past the border of an octahedral geometry image, glued across each
+    edge to itself reversed: row ``-k`` is row ``k - 1`` mirrored, and so on.
+
+    A pixel at most a side past the border is inside after one fold; one farther (a filter wider
+    than the image, which a hostile file may ask for: a 2 x 2 map with a filter of radius 3) is
+    folded again until it is: each fold brings the row (column) nearer the image by its side and
+    leaves the other coordinate as far past as it was, so the loop ends, and every index the
+    compiled filter reads is in the image (issue 40)."""
+    while True:
+        if i < 0:
+            i, j = -1 - i, cols - 1 - j
+        elif i >= rows:
+            i, j = 2 * rows - 1 - i, cols - 1 - j
+        if j < 0:
+            i, j = rows - 1 - i, -1 - j
+        elif j >= cols:
+            i, j = rows - 1 - i, 2 * cols - 1 - j
+        if 0 <= i < rows and 0 <= j < cols:
+            return i, j
 
 
 @njit(cache=True, nogil=True)

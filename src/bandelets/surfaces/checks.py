@@ -126,14 +126,16 @@ def check_genus0(vertices: np.ndarray, faces: np.ndarray) -> None:
     Raises
     ------
     ValueError
-        Naming what is wrong: no faces, unused vertices, zero-area triangles, several
-        components, an open boundary, non-manifold edges or vertices, inconsistent orientation,
-        or genus g > 0.
+        Naming what is wrong: no faces, coordinates that are not finite (NaN, inf), unused
+        vertices, zero-area triangles, several components, an open boundary, non-manifold edges
+        or vertices, inconsistent orientation, or genus g > 0.
     """
     faces = np.asarray(faces, dtype=np.int64)
     n_vertices = len(vertices)
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] < 4:
         raise ValueError(f"expected a closed triangle mesh, got faces of shape {faces.shape}")
+    if not np.all(np.isfinite(vertices)):  # NaN or inf: the relaxation's solver would fail on them
+        raise ValueError("some vertex coordinates are not finite numbers (NaN or infinite)")
     if faces.min() < 0 or faces.max() >= n_vertices:
         raise ValueError("faces refer to vertices that do not exist")
     if np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])):

@@ -75,6 +75,8 @@ def load_mesh(path: str | os.PathLike):
         raise ValueError(f"{path}: not a readable mesh ({err})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{path}: no triangles found")
+    if not np.all(np.isfinite(mesh.vertices)):  # before trimesh's processing drops such vertices
+        raise ValueError(f"{path}: some vertex coordinates are not finite numbers (NaN or infinite)")
     try:
         checks.check_genus0(mesh.vertices, mesh.faces)
         return mesh
