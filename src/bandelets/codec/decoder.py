@@ -191,7 +191,7 @@ def restorations(header: Header, trees: list, quantized: list[np.ndarray], lifti
     """The channels after 0, 1, 2, ... restoration iterations
     (:func:`bandelets.restore.restoration.iterate`)."""
     unit = header.kind == Kind.NORMAL_MAP and header.channels == 3
-    compile_both(restoration, riesz)  # the file chooses a precision: both compiled at once (issue 40)
+    compile_both()  # the file chooses a precision: both compiled at once (issue 40)
     return restoration.iterate(
         quantized,
         header.threshold,

@@ -102,6 +102,7 @@ from numba import njit
 
 from ..format.quantizer import clip_into_bins, dequantize
 from ..runtime.threads import CORES, workers
+from .penalty import across_folds, log_weight, scaled, second_across_folds
 
 __all__ = [
     "STEP",
@@ -235,23 +236,6 @@ def _in_halves(x, constants, step, out, previous, weight, unit_rows, unit_cols, 
     future.result()
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _log_weight(squared_norm, edge):
-    """d(edge log(1 + n / edge))/dn / n, with n = sqrt(squared_norm + 1) (in units of the smoothing)."""
-    n = np.sqrt(squared_norm + np.float32(1.0))
-    return edge / (n * (edge + n))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _scaled(difference, scale, largest):
-    """A difference in units of the smoothing (``scale`` is its inverse), as a float32 of at most
-    :data:`_LARGEST`."""
-    d = difference * scale
-    d = largest if d > largest else d
-    d = -largest if d < -largest else d
-    return np.float32(d)
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _rows(
     x,
@@ -301,9 +285,9 @@ def _rows(
         for c in range(channels):
             _divergence_row(i, rows, px[c], py[c], a[c], b[c], d[c], constants[-1], g[c])
         if folds:
-            _across_folds(x, i, scale, largest, edge, g)
+            across_folds(x, i, scale, largest, edge, g)
             if folds == 2 and second_order > 0.0:
-                _second_across_folds(x, i, scale, largest, second_order, second_edge, g)
+                second_across_folds(x, i, scale, largest, second_order, second_edge, g)
         if step < 0.0:
             for c in range(channels):
                 out[c, i] = g[c]
@@ -340,7 +324,7 @@ def _row_terms(x, r, scale, largest, edge, second_order, second_edge, second, s,
     for c in range(channels):
         here, dx = x[c, r], a[c, k]
         for j in range(cols - 1):
-            dx[j] = _scaled(here[j + 1] - here[j], scale, largest)
+            dx[j] = scaled(here[j + 1] - here[j], scale, largest)
         dx[cols - 1] = 0.0
     s[:] = 0.0
     for c in range(channels):
@@ -348,7 +332,7 @@ def _row_terms(x, r, scale, largest, edge, second_order, second_edge, second, s,
         for j in range(cols):
             s[j] += dx[j] * dx[j] + dyc[j] * dyc[j]
     for j in range(cols):
-        s[j] = _log_weight(s[j], edge)
+        s[j] = log_weight(s[j], edge)
     for c in range(channels):
         dx, dyc, wx, wy = a[c, k], dy[c, k], px[c, k], py[c, k]
         for j in range(cols):
@@ -377,7 +361,7 @@ def _row_terms(x, r, scale, largest, edge, second_order, second_edge, second, s,
         for j in range(cols):
             w[j] += xx[j] * xx[j] + yy[j] * yy[j] + (xy[j] + xy[j]) * xy[j]
     for j in range(cols):
-        w[j] = second_order * _log_weight(w[j], second_edge)
+        w[j] = second_order * log_weight(w[j], second_edge)
     for c in range(channels):
         xx, yy, xy = a[c, k], b[c, k], d[c, k]
         for j in range(cols):
@@ -395,7 +379,7 @@ def _vertical(x, r, scale, largest, dy):
     for c in range(channels):
         here, below, out = x[c, r], x[c, min(r + 1, rows - 1)], dy[c]
         for j in range(cols):
-            out[j] = _scaled(below[j] - here[j], scale, largest)
+            out[j] = scaled(below[j] - here[j], scale, largest)
 
 
 @njit(cache=True, nogil=True)
@@ -448,69 +432,6 @@ def _pixel(i, j, rows, cols, up, here, down, px, py, a, b, d, second, inside):
         if inside or i + 1 < rows:
             g += b[down, j]
     return g
-
-
-@njit(cache=True, nogil=True)
-def _across_folds(x, i, scale, largest, edge, g):
-    """Adds to ``g`` (row ``i`` of the gradient, all channels) the terms of the differences of row
-    ``i``'s border pixels with their neighbours across the folds of an octahedral geometry image
-    (see :func:`penalty_gradient`): the whole row on the first and last rows, else its ends."""
-    rows, cols = x.shape[1:]
-    if i == 0 or i == rows - 1:
-        for j in range(cols):
-            _fold_pair(x, i, j, i, cols - 1 - j, scale, largest, edge, g)
-    _fold_pair(x, i, 0, rows - 1 - i, 0, scale, largest, edge, g)
-    _fold_pair(x, i, cols - 1, rows - 1 - i, cols - 1, scale, largest, edge, g)
-
-
-@njit(cache=True, nogil=True)
-def _second_across_folds(x, i, scale, largest, second_order, second_edge, g):
-    """Adds to ``g`` (row ``i`` of the gradient, all channels) the terms of the second differences
-    across the folds that reach row ``i`` (see :func:`penalty_gradient`): centred on each border pixel
-    ``p``, ``x[f] - 2 x[p] + x[n]``, ``f`` its neighbour across the fold and ``n`` the one inside."""
-    rows, cols = x.shape[1:]
-    constants = (scale, largest, second_order, second_edge)
-    for edge, inside in ((0, 1), (rows - 1, rows - 2)):  # the first and last rows
-        if i == edge:
-            for j in range(cols):
-                m = cols - 1 - j
-                _second_term(x, (edge, j), (edge, m), (inside, j), -2.0, j, constants, g)
-                _second_term(x, (edge, m), (edge, j), (inside, m), 1.0, j, constants, g)
-        elif i == inside:
-            for j in range(cols):
-                _second_term(x, (edge, j), (edge, cols - 1 - j), (inside, j), 1.0, j, constants, g)
-    m = rows - 1 - i
-    for edge, inside in ((0, 1), (cols - 1, cols - 2)):  # the first and last columns
-        _second_term(x, (i, edge), (m, edge), (i, inside), -2.0, edge, constants, g)
-        _second_term(x, (m, edge), (i, edge), (m, inside), 1.0, edge, constants, g)
-        _second_term(x, (i, edge), (m, edge), (i, inside), 1.0, inside, constants, g)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _second_term(x, p, f, n, coefficient, j, constants, g):
-    """``g[:, j] += coefficient w D``, ``D = x[:, f] - 2 x[:, p] + x[:, n]`` (pixels ``(row, column)``)
-    and ``w`` ``second_order`` times the weight of that joint second difference (``constants``:
-    ``scale, largest, second_order, second_edge``, see :func:`_rows`)."""
-    scale, largest, second_order, second_edge = constants
-    s = np.float32(0.0)
-    for c in range(x.shape[0]):
-        e = _scaled(x[c, f[0], f[1]] - 2.0 * x[c, p[0], p[1]] + x[c, n[0], n[1]], scale, largest)
-        s += e * e
-    w = second_order * _log_weight(s, second_edge) * np.float32(coefficient)
-    for c in range(x.shape[0]):
-        g[c, j] += _scaled(x[c, f[0], f[1]] - 2.0 * x[c, p[0], p[1]] + x[c, n[0], n[1]], scale, largest) * w
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fold_pair(x, i, j, m, n, scale, largest, edge, g):
-    """``g[:, j] += w (x[:, i, j] - x[:, m, n])``, ``w`` the weight of that joint difference."""
-    s = np.float32(0.0)
-    for c in range(x.shape[0]):
-        e = _scaled(x[c, i, j] - x[c, m, n], scale, largest)
-        s += e * e
-    w = _log_weight(s, edge)
-    for c in range(x.shape[0]):
-        g[c, j] += _scaled(x[c, i, j] - x[c, m, n], scale, largest) * w
 
 
 @njit(cache=True, nogil=True)
