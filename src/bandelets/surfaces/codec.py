@@ -302,12 +302,28 @@ def encode_mesh(
     else:
         size = size or DEFAULT_SIZE
         bits = (1.0 if bpp is None else bpp) * size * size
+    if image is None and spherical is None and not _genus0(mesh):
+        from .chartcodec import encode_charts  # any other topology: multi-chart geometry images
+
+        return encode_charts(
+            mesh, bits, size=size, transform=transform, frames=frames, normal_weight=normal_weight,
+            restore=restore, max_memory=max_memory,
+        )
     size = size or auto_size(bits)
     check_size(size)
     check_mesh_memory(size, max_memory)  # the decoder's limit
     if image is None:
         image = sample_geometry_image(spherical or map_to_sphere(mesh, max_memory), size).positions
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
+
+
+def _genus0(mesh) -> bool:
+    """Whether the spherical path takes ``mesh`` (closed, manifold, connected, genus 0)."""
+    try:
+        checks.check_genus0(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
+    except ValueError:
+        return False
+    return True
 
 
 def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int = MAX_MEMORY):
@@ -337,6 +353,10 @@ def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int 
         raise ValueError(f"vertices must be a count, 'full' or None, got {vertices!r}")
     if isinstance(vertices, (int, np.integer)) and vertices < 4:
         raise ValueError(f"a closed mesh has at least 4 vertices, asked for {vertices}")
+    from .chartcodec import decode_charts, is_chart_file
+
+    if is_chart_file(data):  # the input's faces come back: no simplification
+        return decode_charts(data, max_memory)
     header, streams = unpack(bytes(data))
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError(
