@@ -34,7 +34,9 @@ def made(name: str):
         return trimesh.creation.torus(1.0, 0.35, major_sections=96, minor_sections=32)
     sphere = trimesh.creation.icosphere(4)
     if name == "cut-sphere":
-        cut = trimesh.Trimesh(sphere.vertices, sphere.faces[~np.any(sphere.vertices[sphere.faces][:, :, 2] > 0.5, 1)])
+        cut = trimesh.Trimesh(
+            sphere.vertices, sphere.faces[~np.any(sphere.vertices[sphere.faces][:, :, 2] > 0.5, 1)]
+        )
         cut.remove_unreferenced_vertices()
         return cut
     other = trimesh.creation.icosphere(4).apply_scale(0.7).apply_translation([2.5, 0, 0])
@@ -69,8 +71,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", nargs="*", default=["fertility.off", "rocker-arm.obj", *MADE])
     args = parser.parse_args()
-    print("| mesh | vertices | route | Draco q | Draco bpv | Draco dB | ours bpv | ours dB | lead | "
-          "components in/out | loops in/out | encode s |")
+    print(
+        "| mesh | vertices | route | Draco q | Draco bpv | Draco dB | ours bpv | ours dB | lead | "
+        "components in/out | loops in/out | encode s |"
+    )
     print("| --- " * 12 + "|")
     for name in args.meshes:
         if name in MADE:

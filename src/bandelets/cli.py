@@ -206,7 +206,11 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("output", help="the PNG to write")
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
-    p = sub.add_parser("mesh-encode", help="compress a closed genus-0 mesh as a spherical geometry image")
+    p = sub.add_parser(
+        "mesh-encode",
+        help="compress a triangle mesh: a closed genus-0 one as a spherical geometry image, any other "
+        "(open, any genus, several parts) as a multi-chart geometry image with its faces",
+    )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", help="the .bdl file to write")
     p.add_argument(
@@ -245,7 +249,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
-    p = sub.add_parser("mesh-decode", help="rebuild the closed mesh of a geometry-image .bdl file")
+    p = sub.add_parser("mesh-decode", help="rebuild the mesh of a mesh .bdl file")
     p.add_argument("input")
     p.add_argument("output", help=".obj, .ply or .off")
     size = p.add_mutually_exclusive_group()
@@ -253,7 +257,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--vertices",
         type=int,
         metavar="N",
-        help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file)",
+        help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file; "
+        "a multi-chart file always has the original's faces)",
     )
     size.add_argument(
         "--full", action="store_true", help="write the whole grid: one vertex per geometry-image pixel"
@@ -261,7 +266,9 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("-f", "--force", action="store_true", help="overwrite an existing output")
 
     p = sub.add_parser(
-        "geometry-image", help="spherical geometry image (and normal map) of a closed genus-0 mesh"
+        "geometry-image",
+        help="spherical geometry image (and normal map) of a closed genus-0 mesh; the multi-chart image "
+        "of any other",
     )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", nargs="?", help="the .npy to write (n x n x 3 float32 positions)")
@@ -650,6 +657,8 @@ def _geometry_image(args) -> None:
     check_size(args.size)  # before the slow parameterization
     with _about(args.input):
         mesh = load_mesh(args.input)
+        if _chart_image(args, mesh):
+            return
         spherical = map_to_sphere(mesh)
         image = sample_geometry_image(spherical, args.size)
     if args.output:
@@ -670,6 +679,29 @@ def _geometry_image(args) -> None:
             f"sample areas max/min {r['sample_area_ratio']:.3g}; uncoded {args.size} x {args.size}: "
             f"Hausdorff PSNR {r['psnr']:.2f} dB, area {r['area']:.4f} of the original"
         )
+
+
+def _chart_image(args, mesh) -> bool:
+    """The multi-chart image and report of a mesh the spherical path refuses (False if it takes it)."""
+    from .files import write_array
+    from .surfaces.chartcodec import chart_report
+    from .surfaces.codec import _genus0
+
+    if _genus0(mesh):
+        return False
+    if args.normals:
+        raise ValueError("--normals needs a closed genus-0 mesh (a spherical geometry image)")
+    r = chart_report(mesh, args.size)
+    if args.output:
+        write_array(args.output, r["image"], "geometry-image", 0)
+    if args.report:
+        print(
+            f"{args.input}: {len(mesh.vertices)} vertices; {r['charts']} charts using "
+            f"{100 * r['used']:.1f} % of the {r['side']} x {r['side']} image; "
+            f"stretch {r['stretch']:.3f} (1 at best); seam copies "
+            f"{100 * r['seam_copies']:.1f} % of the vertices; uncoded: Hausdorff PSNR {r['psnr']:.2f} dB"
+        )
+    return True
 
 
 def _batch(args) -> int:

@@ -38,7 +38,9 @@ def bilinear_matrix(pixels: np.ndarray, side: int):
     from scipy.sparse import coo_matrix
 
     r0, c0, fr, fc = _corners(pixels, side)
-    columns = np.stack([r0 * side + c0, r0 * side + c0 + 1, (r0 + 1) * side + c0, (r0 + 1) * side + c0 + 1], 1)
+    columns = np.stack(
+        [r0 * side + c0, r0 * side + c0 + 1, (r0 + 1) * side + c0, (r0 + 1) * side + c0 + 1], 1
+    )
     weights = np.stack([(1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc], 1)
     rows = np.repeat(np.arange(len(pixels)), 4)
     return coo_matrix((weights.ravel(), (rows, columns.ravel())), shape=(len(pixels), side * side)).tocsr()

@@ -46,6 +46,7 @@ __all__ = [
     "MAGIC",
     "RECORD_VERSION",
     "chart_side",
+    "chart_report",
     "check_surface",
     "decode_charts",
     "encode_charts",
@@ -96,13 +97,15 @@ def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"vertex {np.unique(faces)[bad[0]]} has a non-finite coordinate (NaN or infinity)")
     if faces.shape[0] == 1:
         raise ValueError("the mesh is a single triangle: nothing to code as a surface")
-    repeated = np.flatnonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0]))
+    repeated = np.flatnonzero(
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    )
     if repeated.size:
-        raise ValueError(f"{repeated.size} degenerate faces repeat a vertex (first: face {repeated[0]})")
+        raise ValueError(f"{_faces(repeated.size)} repeat a vertex (degenerate; first: face {repeated[0]})")
     flat = np.flatnonzero(checks.flat_triangles(vertices, faces))
     if flat.size:
         raise ValueError(
-            f"{flat.size} degenerate triangles of zero area (first: face {flat[0]}); remove or repair them"
+            f"{_faces(flat.size)} of zero area (degenerate; first: face {flat[0]}); remove or repair them"
         )
     edges, counts = checks.edge_face_counts(faces)
     if np.any(counts > 2):
@@ -113,6 +116,10 @@ def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         )
     used, faces = np.unique(faces, return_inverse=True)
     return vertices[used], faces.reshape(-1, 3)
+
+
+def _faces(n: int) -> str:
+    return f"{n} face" if n == 1 else f"{n} faces"
 
 
 def _leb128(value: int) -> bytes:
@@ -150,11 +157,18 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     def once(bits: int):
         data = bytes(
             module.encode(
-                vertices, faces.astype(np.uint32), quantization_bits=bits, compression_level=draco.COMPRESSION_LEVEL
+                vertices,
+                faces.astype(np.uint32),
+                quantization_bits=bits,
+                compression_level=draco.COMPRESSION_LEVEL,
             )
         )
         decoded = module.decode(data)
-        return data, np.asarray(decoded.faces, np.int64).reshape(-1, 3), np.asarray(decoded.points, np.float64)
+        return (
+            data,
+            np.asarray(decoded.faces, np.int64).reshape(-1, 3),
+            np.asarray(decoded.points, np.float64),
+        )
 
     stream, carried, _ = once(CARRIER_BITS)
     _, ordered, points = once(ORDER_BITS)
@@ -211,10 +225,10 @@ def encode_charts(
     image = atlas.fit(layout.pixels[owned], positions[layout.corner_vertex[owned]], side)
     prefix = MAGIC + bytes([RECORD_VERSION]) + _leb128(len(stream)) + stream
     image_bits = bits - 8 * (len(prefix) + 4)
-    if image_bits < 0.02 * side * side:
+    if image_bits < 8 * (len(prefix) // 8 + 32):
         raise ValueError(
             f"a target of {bits / 8:.0f} bytes is too small for this mesh: its faces alone take "
-            f"{len(prefix)} bytes, and its positions at least {0.0025 * side * side:.0f}"
+            f"{len(prefix)} bytes, its positions at least {len(prefix) // 8 + 32} more"
         )
     options = EncodeOptions(
         kind="geometry-image",
@@ -275,3 +289,59 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     positions = np.zeros((n_vertices, 3))
     positions[layout.corner_vertex[owned]] = atlas.sample(image, layout.pixels[owned])
     return trimesh.Trimesh(positions, faces, process=False)
+
+
+def _stretch(pixels: np.ndarray, corners: np.ndarray, positions: np.ndarray) -> float:
+    """L2 geometric stretch of the layout (Sander et al.), normalized to 1 at best: the RMS over
+    the surface of the map's singular values, over that of a map preserving the total area.
+    Triangles flat in the layout (three vertices on one side of a square) are left out."""
+    uv = pixels[corners]  # (F, 3, 2)
+    xyz = positions  # (F, 3, 3)
+    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    area_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    keep = np.abs(area_uv) > 1e-6 * np.median(np.abs(area_uv))
+    q1, q2 = xyz[keep, 1] - xyz[keep, 0], xyz[keep, 2] - xyz[keep, 0]
+    a = 2.0 * area_uv[keep]
+    # Partial derivatives of the positions along the layout's two axes.
+    ds = (q1 * d2[keep, 1:2] - q2 * d1[keep, 1:2]) / a[:, None]
+    dt = (q2 * d1[keep, 0:1] - q1 * d2[keep, 0:1]) / a[:, None]
+    area_3d = 0.5 * np.linalg.norm(np.cross(q1, q2), axis=1)
+    mean_square = np.sum(area_3d * 0.5 * (np.sum(ds**2, 1) + np.sum(dt**2, 1))) / np.sum(area_3d)
+    return float(np.sqrt(mean_square * np.sum(np.abs(area_uv[keep])) / np.sum(area_3d)))
+
+
+def chart_report(mesh, size: int | None = None) -> dict:
+    """How the chart route lays out a mesh, before any coding (``geometry-image --report``).
+
+    Returns
+    -------
+    dict
+        ``charts``: their count; ``side``: of the image; ``used``: share of the image inside the
+        charts' squares; ``stretch``: :func:`_stretch` (1 at best; Tutte's uniform weights squeeze
+        the triangles along the squares' sides, which this mean weighs heavily);
+        ``seam_copies``: extra copies of the vertices on the seams, over the vertex count;
+        ``psnr``: Hausdorff PSNR (dB) against ``mesh`` of the mesh read back from the uncoded
+        image (the ceiling no rate passes); ``image``: the image, shape (side, side, 3).
+    """
+    import trimesh
+
+    from . import metrics
+
+    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    side = chart_side(len(vertices)) if size is None else int(size)
+    labels = charts.region_charts(faces)
+    layout = charts.layout(faces, labels, side)
+    owned = charts.owners(layout)
+    image = atlas.fit(layout.pixels[owned], vertices[layout.corner_vertex[owned]], side)
+    back = np.zeros_like(vertices)
+    back[layout.corner_vertex[owned]] = atlas.sample(image, layout.pixels[owned])
+    sizes = charts.pack(np.bincount(layout.corner_chart), side)[1]
+    return {
+        "charts": int(labels.max()) + 1,
+        "side": side,
+        "used": float(np.sum(sizes.astype(np.float64) ** 2) / side**2),
+        "stretch": _stretch(layout.pixels, layout.face_corners, vertices[faces]),
+        "seam_copies": float(len(owned) / len(vertices) - 1.0),
+        "psnr": metrics.hausdorff_psnr(mesh, trimesh.Trimesh(back, faces, process=False)),
+        "image": image,
+    }

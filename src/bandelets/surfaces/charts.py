@@ -33,7 +33,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Layout", "boundary_loop", "disk_charts", "layout", "owners", "pack", "region_charts", "tutte_layout"]
+__all__ = [
+    "Layout",
+    "boundary_loop",
+    "disk_charts",
+    "layout",
+    "owners",
+    "pack",
+    "region_charts",
+    "tutte_layout",
+]
 
 #: Free pixels between two charts' squares: the fill (:func:`.atlas.fill`) makes a smooth passage
 #: across them, so the wavelets do not straddle two unrelated surfaces.
@@ -88,7 +97,9 @@ def region_charts(faces: np.ndarray, faces_per_chart: int = FACES_PER_CHART) -> 
 def _nearest_seed(graph, seeds: np.ndarray):
     from scipy.sparse.csgraph import dijkstra
 
-    return dijkstra(graph, directed=False, indices=seeds, unweighted=True, min_only=True, return_predecessors=True)
+    return dijkstra(
+        graph, directed=False, indices=seeds, unweighted=True, min_only=True, return_predecessors=True
+    )
 
 
 def _face_components(faces: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -204,8 +215,10 @@ def _perimeter(n: int) -> np.ndarray:
     else:
         corners = np.round(np.arange(5) * n / 4.0).astype(np.int64)
         t = np.concatenate(
-            [side + np.arange(corners[side + 1] - corners[side]) / (corners[side + 1] - corners[side])
-             for side in range(4)]
+            [
+                side + np.arange(corners[side + 1] - corners[side]) / (corners[side + 1] - corners[side])
+                for side in range(4)
+            ]
         )
     side = np.floor(t).astype(np.int64) % 4
     s = t - np.floor(t)
@@ -238,7 +251,9 @@ class Layout:
     pixels: np.ndarray
 
 
-def tutte_layout(faces: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def tutte_layout(
+    faces: np.ndarray, labels: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each chart's Tutte embedding in the unit square (uniform weights; one sparse solve).
 
     Returns
@@ -275,9 +290,13 @@ def tutte_layout(faces: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.
         degree = np.bincount(a, minlength=len(unique)).astype(np.float64)
         inner = (index[a] >= 0) & (index[b] >= 0)
         matrix = coo_matrix(
-            (np.concatenate([degree[free], -np.ones(int(inner.sum()))]),
-             (np.concatenate([np.arange(free.size), index[a[inner]]]),
-              np.concatenate([np.arange(free.size), index[b[inner]]]))),
+            (
+                np.concatenate([degree[free], -np.ones(int(inner.sum()))]),
+                (
+                    np.concatenate([np.arange(free.size), index[a[inner]]]),
+                    np.concatenate([np.arange(free.size), index[b[inner]]]),
+                ),
+            ),
             shape=(free.size, free.size),
         ).tocsc()
         toward = (index[a] >= 0) & fixed[b]
