@@ -64,12 +64,15 @@ def _dual_graph(faces: np.ndarray):
     return coo_matrix((np.ones(a.size), (a, b)), shape=(len(faces), len(faces))).tocsr()
 
 
-def region_charts(faces: np.ndarray, faces_per_chart: int = FACES_PER_CHART) -> np.ndarray:
+def region_charts(
+    faces: np.ndarray, faces_per_chart: int = FACES_PER_CHART, merge: bool = False
+) -> np.ndarray:
     """Cut a mesh into compact regions from its connectivity alone (the decoder redoes it).
 
     Seeds by farthest-point sampling in hops across edges (every component has one, from its
     lowest face), about one per ``faces_per_chart`` faces; each face goes to its nearest seed
-    (the lowest on ties). The regions are then split into disks by :func:`disk_charts`.
+    (the lowest on ties). The regions are then split into disks by :func:`disk_charts`, and
+    with ``merge`` merged again into larger disks by :func:`merge_charts`.
 
     Returns
     -------
@@ -90,8 +93,8 @@ def region_charts(faces: np.ndarray, faces_per_chart: int = FACES_PER_CHART) -> 
         seeds.append(far)
         distance = np.minimum(distance, shortest_path(graph, unweighted=True, indices=far, directed=False))
     _, _, sources = _nearest_seed(graph, np.array(seeds))
-    labels = np.searchsorted(np.sort(seeds), sources)
-    return disk_charts(faces, labels)
+    labels = disk_charts(faces, np.searchsorted(np.sort(seeds), sources))
+    return merge_charts(faces, labels) if merge else labels
 
 
 def _nearest_seed(graph, seeds: np.ndarray):
@@ -188,6 +191,50 @@ def disk_charts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
     rank = np.empty(first.size, np.int64)
     rank[np.argsort(first)] = np.arange(first.size)
     return rank[out]
+
+
+def merge_charts(faces: np.ndarray, labels: np.ndarray, most_faces: int | None = None) -> np.ndarray:
+    """Merge neighbouring disk charts while their union stays a disk (of at most ``most_faces``).
+
+    In passes: the pairs of charts sharing the most edges first, each chart merged at most once
+    a pass, until no pair merges. Fewer, larger charts mean fewer seams and chart borders in the
+    image, where the positions jump from one chart to the next.
+    """
+    labels = labels.copy()
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    n = int(faces.max()) + 1
+    key = edges[:, 0] * n + edges[:, 1]
+    order = np.argsort(key, kind="stable")
+    same = key[order][1:] == key[order][:-1]
+    face_a, face_b = order[:-1][same] // 3, order[1:][same] // 3
+    while True:
+        a, b = labels[face_a], labels[face_b]
+        across = a != b
+        pairs = np.sort(np.column_stack([a[across], b[across]]), axis=1)
+        if not len(pairs):
+            break
+        pairs, shared = np.unique(pairs, axis=0, return_counts=True)
+        sizes = np.bincount(labels)
+        touched: set[int] = set()
+        merged = False
+        for k in np.lexsort((pairs[:, 1], pairs[:, 0], -shared)):
+            one, two = int(pairs[k, 0]), int(pairs[k, 1])
+            if one in touched or two in touched:
+                continue
+            if most_faces is not None and sizes[one] + sizes[two] > most_faces:
+                continue
+            union = (labels == one) | (labels == two)
+            if boundary_loop(faces[union]) is None:
+                continue
+            labels[labels == two] = one
+            touched.update((one, two))
+            merged = True
+        if not merged:
+            break
+    _, first = np.unique(labels, return_index=True)
+    rank = np.full(labels.max() + 1, -1, np.int64)
+    rank[labels[np.sort(first)]] = np.arange(first.size)
+    return rank[labels]
 
 
 def _two_seeds(faces: np.ndarray) -> np.ndarray:
