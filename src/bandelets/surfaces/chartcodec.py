@@ -5,8 +5,8 @@ the input's faces and vertex count: its components, boundary loops and genus are
 and it has no crack anywhere (a vertex on a seam between charts is one vertex). Only the
 positions are lossy:
 
-1. the faces go into a Draco stream (Edgebreaker, about 2 to 3 bits per vertex) with positions
-   quantized to one bit (worthless: the decoder drops them);
+1. the faces go into a Draco stream (Edgebreaker, 0.5 to 2.5 bits per vertex) with dummy
+   positions that cost almost nothing (the decoder drops them);
 2. both sides cut the decoded faces into disk charts and lay them out in one square image from
    the faces alone (:mod:`.charts`), so no chart, seam or coordinate is stored;
 3. the positions become the smoothest image whose bilinear reads at the vertices are the
@@ -169,10 +169,10 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
 
     module = draco._module()
 
-    def once(bits: int):
+    def once(points: np.ndarray, bits: int):
         data = bytes(
             module.encode(
-                vertices,
+                points,
                 faces.astype(np.uint32),
                 quantization_bits=bits,
                 compression_level=draco.COMPRESSION_LEVEL,
@@ -185,8 +185,14 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
             np.asarray(decoded.points, np.float64),
         )
 
-    stream, carried, _ = once(CARRIER_BITS)
-    _, ordered, points = once(ORDER_BITS)
+    # Distinct carrier positions (Draco merges equal ones) that all quantize to 0 but the last:
+    # their residuals cost almost nothing (fertility.off: 2.53 bits per vertex, 2.77 with the
+    # mesh's own positions at 1 bit).
+    carrier = np.zeros((len(vertices), 3))
+    carrier[:, 0] = np.arange(len(vertices)) * 1e-7
+    carrier[-1] = 1.0
+    stream, carried, _ = once(carrier, CARRIER_BITS)
+    _, ordered, points = once(vertices, ORDER_BITS)
     if not np.array_equal(carried, ordered) or len(points) != len(vertices) or len(ordered) != len(faces):
         raise ValueError(
             "the mesh has pinched (non-manifold) vertices or inconsistently oriented faces; repair it first"
