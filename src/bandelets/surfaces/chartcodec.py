@@ -44,11 +44,10 @@ import zlib
 
 import numpy as np
 
-from ..bitstream import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, unpack
-from ..decoder import decode_parsed
-from ..encoder import encode_with_stats
-from ..options import EncodeOptions
 from . import atlas, charts, checks, draco
+
+# The codec's names through the spherical path's module, whose imports follow the package's layout.
+from .codec import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, EncodeOptions, decode_parsed, encode_with_stats, unpack
 
 __all__ = [
     "MAGIC",
