@@ -68,7 +68,7 @@ RECORD_VERSION = 1
 SIDE_PER_ROOT_VERTEX = 1.25
 #: The cuts into charts a file may use: faces per seed of :func:`.charts.region_charts`, and
 #: whether the regions are merged into larger disks.
-CHART_VARIANTS = ((2000, False), (500, True), (250, True))
+CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
 #: Most vertices of a mesh for which the encoder tries every variant.
 TRIED_UP_TO = 60_000
 TRIAL_SAMPLES = 20_000

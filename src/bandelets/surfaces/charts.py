@@ -47,6 +47,9 @@ __all__ = [
 #: Free pixels between two charts' squares: the fill (:func:`.atlas.fill`) makes a smooth passage
 #: across them, so the wavelets do not straddle two unrelated surfaces.
 PADDING = 2
+#: Most squared boundary length over face count of a chart that :func:`merge_charts` makes: a
+#: long or ragged chart crowds its vertices in Tutte's embedding.
+MOST_ROUNDNESS = 20.0
 #: Faces per chart that :func:`region_charts` aims at.
 FACES_PER_CHART = 2000
 
@@ -224,7 +227,8 @@ def merge_charts(faces: np.ndarray, labels: np.ndarray, most_faces: int | None =
             if most_faces is not None and sizes[one] + sizes[two] > most_faces:
                 continue
             union = (labels == one) | (labels == two)
-            if boundary_loop(faces[union]) is None:
+            loop = boundary_loop(faces[union])
+            if loop is None or len(loop) ** 2 > MOST_ROUNDNESS * np.count_nonzero(union):
                 continue
             labels[labels == two] = one
             touched.update((one, two))
