@@ -7,7 +7,9 @@ sides, bounding-box diagonal, 200,000 samples each way) of each decoded file aga
 and the counts of components and boundary loops of the input and of our decoded mesh, both
 welded by position. The meshes: fertility.off (genus 4) and rocker-arm.obj (genus 1) of
 ``../shared/data/meshes``, and three made from trimesh's primitives: a torus, a sphere cut open
-(faces with z > 0.5 removed) and two spheres in one mesh.
+(faces with z > 0.5 removed) and two spheres in one mesh; and two made from the shared ones:
+the bunny cut open (its faces above 80 % of its height removed), the bunny and the fandisk in
+one mesh.
 
     PYTHONPATH=src python benchmarks/mesh_topology.py [--meshes fertility.off torus ...]
 """
@@ -23,13 +25,24 @@ import numpy as np
 from bandelets.surfaces import codec, draco, metrics
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
-MADE = ("torus", "cut-sphere", "two-spheres")
+MADE = ("torus", "cut-sphere", "two-spheres", "open-bunny", "bunny+fandisk")
 
 
 def made(name: str):
     """A test mesh from trimesh's primitives."""
     import trimesh
 
+    if name == "open-bunny":  # a scan with holes: the faces above 80 % of the height removed
+        bunny = codec.load_mesh(MESHES / "bunny.off")
+        top = bunny.bounds[0, 1] + 0.8 * (bunny.bounds[1, 1] - bunny.bounds[0, 1])
+        cut = trimesh.Trimesh(bunny.vertices, bunny.faces[bunny.triangles_center[:, 1] < top])
+        cut.remove_unreferenced_vertices()
+        return cut
+    if name == "bunny+fandisk":  # two shared meshes in one file, side by side
+        bunny, fandisk = codec.load_mesh(MESHES / "bunny.off"), codec.load_mesh(MESHES / "fandisk.off")
+        fandisk.apply_scale(bunny.scale / fandisk.scale)
+        fandisk.apply_translation([bunny.bounds[1, 0] - fandisk.bounds[0, 0] + 0.1 * bunny.scale, 0, 0])
+        return trimesh.util.concatenate([bunny, fandisk])
     if name == "torus":
         return trimesh.creation.torus(1.0, 0.35, major_sections=96, minor_sections=32)
     sphere = trimesh.creation.icosphere(4)
