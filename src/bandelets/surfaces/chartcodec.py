@@ -19,7 +19,8 @@ lead on a torus (+9 dB at 3.9 bits per vertex) and a cut sphere (+12 dB), and tr
 rocker-arm.obj (-9 dB), whose merged charts are long and thin. The encoder codes the mesh with
 each of :data:`CHART_VARIANTS` (up to :data:`TRIED_UP_TO` vertices; above, the first only) and
 keeps the file of the best Hausdorff PSNR (:data:`TRIAL_SAMPLES` samples a side); one byte says
-which.
+which. It then tries the sides :data:`SIDE_FACTORS` times the default in the same way (the
+image's header holds its side).
 
 File layout (a mesh record of its own, not a plain .bdl image; little endian)::
 
@@ -72,6 +73,8 @@ CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
 #: Most vertices of a mesh for which the encoder tries every variant.
 TRIED_UP_TO = 60_000
 TRIAL_SAMPLES = 20_000
+#: Sides the encoder also tries, over :func:`chart_side`'s, with the best cut into charts.
+SIDE_FACTORS = (0.8, 1.25)
 #: Draco's bits for the positions that carry the faces (the fewest it takes).
 CARRIER_BITS = 1
 #: Bits of the positions through which the encoder learns Draco's vertex order.
@@ -258,19 +261,30 @@ def encode_charts(
         loop_filter=False,
         max_memory=max_memory,
     )
-    variants = range(len(CHART_VARIANTS)) if len(positions) <= TRIED_UP_TO else range(1)
-    best = None
-    for variant in variants:
-        layout = charts.layout(faces, charts.region_charts(faces, *CHART_VARIANTS[variant]), side)
+    tried = len(positions) <= TRIED_UP_TO
+    labels = {}
+
+    def attempt(variant: int, side: int) -> tuple[float, int, bytes]:
+        if variant not in labels:
+            labels[variant] = charts.region_charts(faces, *CHART_VARIANTS[variant])
+        layout = charts.layout(faces, labels[variant], side)
         owned = charts.owners(layout)
         image = atlas.fit(layout.pixels[owned], positions[layout.corner_vertex[owned]], side)
         coded = encode_with_stats(image, options, bpp=image_bits / (side * side)).data
-        score = _trial_psnr(coded, layout, faces, positions, max_memory) if len(variants) > 1 else 0.0
-        if best is None or score > best[0]:
-            best = (score, variant, coded)
+        return (_trial_psnr(coded, layout, faces, positions, max_memory) if tried else 0.0), variant, coded
+
+    # The cut into charts first, at the default side; then, without a side asked for, the side.
+    best = max((attempt(variant, side) for variant in range(len(CHART_VARIANTS) if tried else 1)), key=_score)
+    if tried and size is None:
+        others = {int(np.clip(round(side * factor / 2.0) * 2, 8, 4096)) for factor in SIDE_FACTORS} - {side}
+        best = max([best, *(attempt(best[1], other) for other in sorted(others))], key=_score)
     _, variant, coded = best
     body = prefix + bytes([variant]) + head + coded
     return body + zlib.crc32(body).to_bytes(4, "little")
+
+
+def _score(trial: tuple[float, int, bytes]) -> float:
+    return trial[0]
 
 
 def _positions(image: np.ndarray, layout: charts.Layout, n_vertices: int) -> np.ndarray:
