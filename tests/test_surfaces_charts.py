@@ -134,3 +134,21 @@ def test_corrupt_chart_file_refused():
     data[len(data) // 2] ^= 0xFF
     with pytest.raises(ValueError, match="corrupt"):
         codec.decode_mesh(bytes(data))
+
+
+def test_draco_only_record_decodes_to_dracos_mesh():
+    import zlib
+
+    from bandelets.surfaces import draco
+
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12)
+    stream = draco.encode(torus, 2000)
+    body = chartcodec.MAGIC + bytes([chartcodec.RECORD_VERSION, chartcodec.DRACO_ONLY])
+    body += chartcodec._leb128(len(stream)) + stream
+    decoded = codec.decode_mesh(body + zlib.crc32(body).to_bytes(4, "little"))
+    expected = draco.decode(stream)
+    assert np.array_equal(decoded.faces, expected.faces)
+    assert np.allclose(decoded.vertices, expected.vertices)
+    with pytest.raises(ValueError, match="bytes after the Draco stream"):
+        body += b"\0"
+        codec.decode_mesh(body + zlib.crc32(body).to_bytes(4, "little"))

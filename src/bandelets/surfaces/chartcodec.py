@@ -27,7 +27,9 @@ File layout (a mesh record of its own, not a plain .bdl image; little endian)::
     offset  size  field
     0       4     magic b"BDLC"
     4       1     record version (RECORD_VERSION, 1)
-    5       1     the charts: an index into CHART_VARIANTS (faces per seed, merged or not)
+    5       1     the charts: an index into CHART_VARIANTS (faces per seed, merged or not),
+                  or DRACO_ONLY (255): the Draco stream is then Draco's own file of the mesh,
+                  its positions the decoded ones, and no geometry image follows
     6       ...   byte length of the Draco stream (unsigned LEB128)
     ...     ...   the Draco stream: the faces, in the order the decoder numbers the vertices
     ...     ...   the geometry image: a whole .bdl file (its own header and CRC32) of kind
@@ -51,6 +53,7 @@ from . import atlas, charts, checks, draco
 from .codec import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY, EncodeOptions, decode_parsed, encode_with_stats, unpack
 
 __all__ = [
+    "DRACO_ONLY",
     "MAGIC",
     "CHART_VARIANTS",
     "RECORD_VERSION",
@@ -70,6 +73,9 @@ SIDE_PER_ROOT_VERTEX = 1.25
 #: The cuts into charts a file may use: faces per seed of :func:`.charts.region_charts`, and
 #: whether the regions are merged into larger disks.
 CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
+#: The record's variant byte when it holds Draco's own file of the mesh, positions and all (where
+#: no geometry image pays: the encoder measures both at the asked size and keeps the better).
+DRACO_ONLY = 255
 #: Most vertices of a mesh for which the encoder tries every variant.
 TRIED_UP_TO = 60_000
 TRIAL_SAMPLES = 20_000
@@ -212,6 +218,7 @@ def encode_charts(
     frames: bool = True,
     normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     restore: bool = False,
+    fallback: bool = True,
     max_memory: int = MAX_MEMORY,
 ) -> bytes:
     """Compress a mesh of any topology into a chart mesh record of about ``bits`` bits.
@@ -225,6 +232,9 @@ def encode_charts(
         Side of the geometry image (even, 8 to 4096); default :func:`chart_side`.
     transform, frames, normal_weight, restore
         As :func:`bandelets.surfaces.codec.encode_mesh`.
+    fallback : bool
+        Store Draco's own file of the mesh instead (record variant :data:`DRACO_ONLY`) where it
+        measures better at the same size (meshes up to :data:`TRIED_UP_TO` vertices).
     max_memory : int
         Refuse a mesh or an image whose coding needs more bytes.
 
@@ -239,7 +249,8 @@ def encode_charts(
     checks.check_memory(len(faces), max_memory)
     oriented = trimesh.Trimesh(vertices, faces, process=False)
     trimesh.repair.fix_winding(oriented)  # Edgebreaker needs consistently oriented faces
-    stream, faces, positions = _connectivity(vertices, np.asarray(oriented.faces, np.int64))
+    faces_in = np.asarray(oriented.faces, np.int64)
+    stream, faces, positions = _connectivity(vertices, faces_in)
     side = chart_side(len(positions)) if size is None else int(size)
     if not (8 <= side <= 4096 and side % 2 == 0):
         raise ValueError(f"the geometry image size must be even, from 8 to 4096, got {side}")
@@ -278,9 +289,34 @@ def encode_charts(
     if tried and size is None:
         others = {int(np.clip(round(side * factor / 2.0) * 2, 8, 4096)) for factor in SIDE_FACTORS} - {side}
         best = max([best, *(attempt(best[1], other) for other in sorted(others))], key=_score)
+    if tried and fallback:
+        best = max(
+            [best, _draco_trial(vertices, faces_in, positions, faces, bits - 8 * (len(prefix) + 6 + 4))],
+            key=_score,
+        )
     _, variant, coded = best
+    if variant == DRACO_ONLY:
+        body = prefix + bytes([DRACO_ONLY]) + _leb128(len(coded)) + coded
+        return body + zlib.crc32(body).to_bytes(4, "little")
     body = prefix + bytes([variant]) + head + coded
     return body + zlib.crc32(body).to_bytes(4, "little")
+
+
+def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[float, int, bytes]:
+    """Draco's own file of the mesh within ``bits`` and its trial PSNR (``-inf`` if none fits)."""
+    import trimesh
+
+    from . import metrics
+
+    try:
+        data = draco.encode(trimesh.Trimesh(vertices, faces_in, process=False), bits / 8.0)
+        decoded = draco.decode(data)
+        psnr = metrics.hausdorff_psnr(
+            trimesh.Trimesh(positions, faces, process=False), decoded, TRIAL_SAMPLES
+        )
+    except ValueError:
+        return -np.inf, DRACO_ONLY, b""
+    return psnr, DRACO_ONLY, data
 
 
 def _score(trial: tuple[float, int, bytes]) -> float:
@@ -335,7 +371,7 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     if data[4] != RECORD_VERSION:
         raise ValueError(f"chart mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
     variant = data[5]
-    if variant >= len(CHART_VARIANTS):
+    if variant != DRACO_ONLY and variant >= len(CHART_VARIANTS):
         raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
     length, offset = _read_leb128(data, 6)
     if offset + length > len(data) - 4:
@@ -349,6 +385,10 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     n_vertices = len(np.asarray(decoded.points).reshape(-1, 3))
     if len(faces) == 0 or faces.max() >= n_vertices or np.unique(faces).size != n_vertices:
         raise ValueError("corrupt chart mesh file (faces)")
+    if variant == DRACO_ONLY:  # the positions are Draco's own
+        if image_data:
+            raise ValueError("corrupt chart mesh file (bytes after the Draco stream)")
+        return trimesh.Trimesh(np.asarray(decoded.points, np.float64).reshape(-1, 3), faces, process=False)
     header, streams = unpack(image_data)
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError("corrupt chart mesh file (not a square geometry image)")
