@@ -77,7 +77,7 @@ CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
 #: no geometry image pays: the encoder measures both at the asked size and keeps the better).
 DRACO_ONLY = 255
 #: Most vertices of a mesh for which the encoder tries every variant.
-TRIED_UP_TO = 60_000
+TRIED_UP_TO = 30_000
 TRIAL_SAMPLES = 20_000
 #: Sides the encoder also tries, over :func:`chart_side`'s, with the best cut into charts.
 SIDE_FACTORS = (0.8, 1.25)
