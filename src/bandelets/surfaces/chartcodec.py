@@ -203,7 +203,8 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     _, ordered, points = once(vertices, ORDER_BITS)
     if not np.array_equal(carried, ordered) or len(points) != len(vertices) or len(ordered) != len(faces):
         raise ValueError(
-            "the mesh has pinched (non-manifold) vertices or inconsistently oriented faces; repair it first"
+            "the mesh has pinched (non-manifold) vertices or faces that cannot be oriented consistently "
+            "(a non-orientable surface); repair it first"
         )
     source = cKDTree(vertices).query(points)[1]
     return stream, ordered, vertices[source]
@@ -278,6 +279,8 @@ def encode_charts(
     def attempt(variant: int, side: int) -> tuple[float, int, bytes]:
         if variant not in labels:
             labels[variant] = charts.region_charts(faces, *CHART_VARIANTS[variant])
+        if size is None:  # many small charts (a soup of parts) need a larger image than the default
+            side = _fitting_side(labels[variant], faces, side)
         layout = charts.layout(faces, labels[variant], side)
         owned = charts.owners(layout)
         image = atlas.fit(layout.pixels[owned], positions[layout.corner_vertex[owned]], side)
@@ -317,6 +320,20 @@ def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[flo
     except ValueError:
         return -np.inf, DRACO_ONLY, b""
     return psnr, DRACO_ONLY, data
+
+
+def _fitting_side(labels: np.ndarray, faces: np.ndarray, side: int) -> int:
+    """The smallest side from ``side`` up (by quarters, even) whose image holds every chart."""
+    n_vertices = int(faces.max()) + 1
+    counts = np.bincount(np.unique(labels[:, None] * n_vertices + faces) // n_vertices)  # chart vertices
+    while True:
+        try:
+            charts.pack(counts, side)
+            return side
+        except ValueError:
+            if side >= 4096:
+                raise
+            side = min(4096, int(np.ceil(side * 1.25 / 2.0)) * 2)
 
 
 def _score(trial: tuple[float, int, bytes]) -> float:
@@ -435,8 +452,8 @@ def chart_report(mesh, size: int | None = None) -> dict:
     from . import metrics
 
     vertices, faces = check_surface(mesh.vertices, mesh.faces)
-    side = chart_side(len(vertices)) if size is None else int(size)
     labels = charts.region_charts(faces)
+    side = _fitting_side(labels, faces, chart_side(len(vertices))) if size is None else int(size)
     layout = charts.layout(faces, labels, side)
     owned = charts.owners(layout)
     image = atlas.fit(layout.pixels[owned], vertices[layout.corner_vertex[owned]], side)
