@@ -205,11 +205,13 @@ def test_mesh_encode_restores_only_when_asked(tmp_path, capsys):
 
 
 def test_mesh_command_errors(tmp_path, capsys):
-    torus = tmp_path / "torus.off"
-    torus.write_bytes(trimesh.creation.torus(1.0, 0.3).export(file_type="off").encode())
-    assert main(["mesh-encode", str(torus), str(tmp_path / "t.bdl")]) == 2
-    assert f"bandelets: error: {torus}: the surface has genus 1" in capsys.readouterr().err  # names the file
+    triangle = tmp_path / "triangle.off"
+    triangle.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    assert main(["mesh-encode", str(triangle), str(tmp_path / "t.bdl")]) == 2
+    assert f"bandelets: error: {triangle}: the mesh is a single triangle" in capsys.readouterr().err
     assert not (tmp_path / "t.bdl").exists()
+    torus = tmp_path / "torus.off"  # any genus is taken (the chart route): the options are still checked
+    torus.write_bytes(trimesh.creation.torus(1.0, 0.3).export(file_type="off").encode())
     assert main(["mesh-encode", str(torus), str(tmp_path / "t.bdl"), "--normal-weight", "100"]) == 2
     assert "normal_weight must be from 1/64 to 64" in capsys.readouterr().err
     assert main(["mesh-decode", str(tmp_path / "missing.bdl"), str(tmp_path / "x.stl")]) == 2

@@ -218,7 +218,11 @@ def _add_show(sub) -> None:
 
 
 def _add_mesh_encode(sub) -> None:
-    p = sub.add_parser("mesh-encode", help="compress a closed genus-0 mesh as a spherical geometry image")
+    p = sub.add_parser(
+        "mesh-encode",
+        help="compress a triangle mesh: a closed genus-0 one as a spherical geometry image, any other "
+        "(open, any genus, several parts) as a multi-chart geometry image with its faces",
+    )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", help="the .bdl file to write")
     p.add_argument(
@@ -259,7 +263,7 @@ def _add_mesh_encode(sub) -> None:
 
 
 def _add_mesh_decode(sub) -> None:
-    p = sub.add_parser("mesh-decode", help="rebuild the closed mesh of a geometry-image .bdl file")
+    p = sub.add_parser("mesh-decode", help="rebuild the mesh of a mesh .bdl file")
     p.add_argument("input")
     p.add_argument("output", help=".obj, .ply or .off")
     size = p.add_mutually_exclusive_group()
@@ -267,7 +271,8 @@ def _add_mesh_decode(sub) -> None:
         "--vertices",
         type=positive_int,
         metavar="N",
-        help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file)",
+        help="simplify the mesh to N vertices (default: the original mesh's count, stored in the file; "
+        "a multi-chart file always has the original's faces)",
     )
     size.add_argument(
         "--full", action="store_true", help="write the whole grid: one vertex per geometry-image pixel"
@@ -277,7 +282,9 @@ def _add_mesh_decode(sub) -> None:
 
 def _add_geometry_image(sub) -> None:
     p = sub.add_parser(
-        "geometry-image", help="spherical geometry image (and normal map) of a closed genus-0 mesh"
+        "geometry-image",
+        help="spherical geometry image (and normal map) of a closed genus-0 mesh; the multi-chart image "
+        "of any other",
     )
     p.add_argument("input", help="triangle mesh (OBJ, PLY, OFF, STL, ...)")
     p.add_argument("output", nargs="?", help="the .npy to write (n x n x 3 float32 positions)")

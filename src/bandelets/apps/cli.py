@@ -354,6 +354,8 @@ def _geometry_image(args) -> None:
     check_size(args.size)  # before the slow parameterization
     with _about(args.input):
         mesh = load_mesh(args.input)
+        if _chart_image(args, mesh):
+            return
         spherical = map_to_sphere(mesh)
         image = sample_geometry_image(spherical, args.size)
     if args.output:
@@ -374,6 +376,29 @@ def _geometry_image(args) -> None:
             f"sample areas max/min {r['sample_area_ratio']:.3g}; uncoded {args.size} x {args.size}: "
             f"Hausdorff PSNR {r['psnr']:.2f} dB, area {r['area']:.4f} of the original"
         )
+
+
+def _chart_image(args, mesh) -> bool:
+    """The multi-chart image and report of a mesh the spherical path refuses (False if it takes it)."""
+    from ..io.files import write_array
+    from ..surfaces.chartcodec import chart_report
+    from ..surfaces.codec import _genus0
+
+    if _genus0(mesh):
+        return False
+    if args.normals:
+        raise ValueError("--normals needs a closed genus-0 mesh (a spherical geometry image)")
+    r = chart_report(mesh, args.size)
+    if args.output:
+        write_array(args.output, r["image"], "geometry-image", 0)
+    if args.report:
+        print(
+            f"{args.input}: {len(mesh.vertices)} vertices; {r['charts']} charts using "
+            f"{100 * r['used']:.1f} % of the {r['side']} x {r['side']} image; "
+            f"stretch {r['stretch']:.3f} (1 at best); seam copies "
+            f"{100 * r['seam_copies']:.1f} % of the vertices; uncoded: Hausdorff PSNR {r['psnr']:.2f} dB"
+        )
+    return True
 
 
 def _batch(args) -> int:

@@ -1,5 +1,9 @@
 """Mesh coding: a closed genus-0 mesh -> spherical geometry image -> .bdl, and back.
 
+Any other mesh (open, of higher genus, of several components) takes the multi-chart route of
+:mod:`.chartcodec`: :func:`encode_mesh` chooses by :func:`.checks.check_genus0`, and
+:func:`decode_mesh` by the file's magic (``b"BDLC"``, a mesh record of its own; see there).
+
 The .bdl file is an ordinary geometry-image file (kind ``geometry-image``, three channels
 of positions in the mesh's unit): its header holds the image size, which is all the decoder
 needs to rebuild the glued mesh (:func:`.geometry_image.mesh_from_image`), and the vertex
@@ -75,8 +79,9 @@ def load_mesh(path: str | os.PathLike):
         raise ValueError(f"{path}: not a readable mesh ({err})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{path}: no triangles found")
-    if not np.all(np.isfinite(mesh.vertices)):  # before trimesh's processing drops such vertices
-        raise ValueError(f"{path}: some vertex coordinates are not finite numbers (NaN or infinite)")
+    bad = np.flatnonzero(~np.all(np.isfinite(mesh.vertices), axis=1))
+    if bad.size:  # before trimesh's processing drops them and their faces silently
+        raise ValueError(f"{path}: vertex {bad[0]} has a non-finite coordinate (NaN or infinity)")
     try:
         checks.check_genus0(mesh.vertices, mesh.faces)
         return mesh
@@ -241,7 +246,10 @@ def encode_mesh(
     spherical: SphericalMesh | None = None,
     max_memory: int = MAX_MEMORY,
 ) -> bytes:
-    """Compress a closed genus-0 mesh into a .bdl file.
+    """Compress a mesh into a .bdl file: a closed genus-0 mesh as a spherical geometry image,
+    any other as a multi-chart one (:func:`.chartcodec.encode_charts`: ``size`` is then the side
+    of that image, ``bpp`` its bits per pixel; ``extension``, ``image`` and ``spherical`` do
+    not apply).
 
     Parameters
     ----------
@@ -283,6 +291,11 @@ def encode_mesh(
     for name, value in targets.items():
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
+    by_charts = image is None and spherical is None and not _genus0(mesh)
+    if by_charts:
+        from .chartcodec import check_surface
+
+        check_surface(mesh.vertices, mesh.faces)  # a bad mesh's own error, before the options'
     options = EncodeOptions(  # validated before the slow parameterization
         kind="geometry-image",
         transform=transform,
@@ -298,6 +311,7 @@ def encode_mesh(
         if size is not None and size != image.shape[0]:
             raise ValueError(f"size {size} given with a {image.shape[0]} x {image.shape[1]} geometry image")
         size = image.shape[0]
+    asked_size = size
     if bits_per_vertex is not None:
         bits = bits_per_vertex * len(mesh.vertices)
     elif n_bytes is not None:
@@ -305,6 +319,22 @@ def encode_mesh(
     else:
         size = size or DEFAULT_SIZE
         bits = (1.0 if bpp is None else bpp) * size * size
+    if by_charts:
+        from .chartcodec import chart_side, encode_charts  # any other topology: multi-chart images
+
+        if bits_per_vertex is None and n_bytes is None:  # bits per pixel of the chart image
+            size = asked_size or chart_side(len(mesh.vertices))
+            bits = (1.0 if bpp is None else bpp) * size * size
+        return encode_charts(
+            mesh,
+            bits,
+            size=size,
+            transform=transform,
+            frames=frames,
+            normal_weight=normal_weight,
+            restore=restore,
+            max_memory=max_memory,
+        )
     size = size or auto_size(bits)
     check_size(size)
     check_mesh_memory(size, max_memory)  # the decoder's limit
@@ -313,8 +343,18 @@ def encode_mesh(
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
+def _genus0(mesh) -> bool:
+    """Whether the spherical path takes ``mesh`` (closed, manifold, connected, genus 0)."""
+    try:
+        checks.check_genus0(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
+    except ValueError:
+        return False
+    return True
+
+
 def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int = MAX_MEMORY):
-    """Rebuild the closed mesh of a geometry-image .bdl file.
+    """Rebuild the mesh of a mesh .bdl file (a multi-chart file: the input's faces, whatever
+    ``vertices`` asks, :func:`.chartcodec.decode_charts`).
 
     Parameters
     ----------
@@ -340,6 +380,10 @@ def decode_mesh(data: bytes, vertices: int | str | None = None, max_memory: int 
         raise ValueError(f"vertices must be a count, 'full' or None, got {vertices!r}")
     if isinstance(vertices, (int, np.integer)) and vertices < 4:
         raise ValueError(f"a closed mesh has at least 4 vertices, asked for {vertices}")
+    from .chartcodec import decode_charts, is_chart_file
+
+    if is_chart_file(data):  # the input's faces come back: no simplification
+        return decode_charts(data, max_memory)
     header, streams = unpack(bytes(data))
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError(

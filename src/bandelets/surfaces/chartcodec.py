@@ -1,0 +1,474 @@
+"""Meshes of any topology (open, any genus, several parts) as multi-chart geometry images.
+
+The route for every mesh that the spherical path (:mod:`.codec`) refuses. The decoded mesh has
+the input's faces and vertex count: its components, boundary loops and genus are the input's,
+and it has no crack anywhere (a vertex on a seam between charts is one vertex). Only the
+positions are lossy:
+
+1. the faces go into a Draco stream (Edgebreaker, 0.5 to 2.5 bits per vertex) with dummy
+   positions that cost almost nothing (the decoder drops them);
+2. both sides cut the decoded faces into disk charts and lay them out in one square image from
+   the faces alone (:mod:`.charts`), so no chart, seam or coordinate is stored;
+3. the positions become the smoothest image whose bilinear reads at the vertices are the
+   positions (:func:`.atlas.fit`), coded by the image codec (kind ``geometry-image``, local
+   frames, symmetric extension);
+4. the decoder reads every vertex at its place in its first chart.
+
+The best cut into charts depends on the mesh: small regions merged into a few large disks
+lead on a torus (+9 dB at 3.9 bits per vertex) and a cut sphere (+12 dB), and trail on
+rocker-arm.obj (-9 dB), whose merged charts are long and thin. The encoder codes the mesh with
+each of :data:`CHART_VARIANTS` (up to :data:`TRIED_UP_TO` vertices; above, the first only) and
+keeps the file of the best Hausdorff PSNR (:data:`TRIAL_SAMPLES` samples a side); one byte says
+which. It then tries the sides :data:`SIDE_FACTORS` times the default in the same way (the
+image's header holds its side).
+
+File layout (a mesh record of its own, not a plain .bdl image; little endian)::
+
+    offset  size  field
+    0       4     magic b"BDLC"
+    4       1     record version (RECORD_VERSION, 1)
+    5       1     the charts: an index into CHART_VARIANTS (faces per seed, merged or not),
+                  or DRACO_ONLY (255): the Draco stream is then Draco's own file of the mesh,
+                  its positions the decoded ones, and no geometry image follows
+    6       ...   byte length of the Draco stream (unsigned LEB128)
+    ...     ...   the Draco stream: the faces, in the order the decoder numbers the vertices
+    ...     ...   the geometry image: a whole .bdl file (its own header and CRC32) of kind
+                  geometry-image, 3 channels, square of even side, symmetric extension
+    end-4   4     CRC32 of everything before it
+
+Version 1's charts and layout are those of :func:`.charts.region_charts` and
+:func:`.charts.layout` with their constants of this version (:data:`.charts.FACES_PER_CHART`,
+:data:`.charts.PADDING`); changing them needs a new record version.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+# The codec's names through the spherical path's module, whose imports follow the package's layout.
+from ..codec.decoder import decode_parsed
+from ..codec.encoder import encode_with_stats
+from ..codec.options import EncodeOptions
+from ..format.fields import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY
+from ..format.header import unpack
+from . import atlas, charts, checks, draco
+
+__all__ = [
+    "DRACO_ONLY",
+    "MAGIC",
+    "CHART_VARIANTS",
+    "RECORD_VERSION",
+    "chart_side",
+    "chart_report",
+    "check_surface",
+    "decode_charts",
+    "encode_charts",
+    "is_chart_file",
+]
+
+MAGIC = b"BDLC"
+RECORD_VERSION = 1
+#: Image side over the square root of the vertex count: fertility.off (4,494 vertices) measured
+#: best at 72 to 80 pixels, rocker-arm.obj (10,044) at 128 to 160 (at Draco's sizes).
+SIDE_PER_ROOT_VERTEX = 1.25
+#: The cuts into charts a file may use: faces per seed of :func:`.charts.region_charts`, and
+#: whether the regions are merged into larger disks.
+CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
+#: The record's variant byte when it holds Draco's own file of the mesh, positions and all (where
+#: no geometry image pays: the encoder measures both at the asked size and keeps the better).
+DRACO_ONLY = 255
+#: Most vertices of a mesh for which the encoder tries every variant.
+TRIED_UP_TO = 30_000
+TRIAL_SAMPLES = 20_000
+#: Sides the encoder also tries, over :func:`chart_side`'s, with the best cut into charts.
+SIDE_FACTORS = (0.8, 1.25)
+#: Draco's bits for the positions that carry the faces (the fewest it takes).
+CARRIER_BITS = 1
+#: Bits of the positions through which the encoder learns Draco's vertex order.
+ORDER_BITS = 20
+
+
+def is_chart_file(data: bytes) -> bool:
+    """Whether ``data`` starts as a chart mesh record."""
+    return bytes(data[:4]) == MAGIC
+
+
+def chart_side(n_vertices: int) -> int:
+    """Side of the geometry image of a mesh of ``n_vertices`` vertices (even, 8 to 4096)."""
+    side = int(round(SIDE_PER_ROOT_VERTEX * np.sqrt(n_vertices) / 2.0)) * 2
+    return int(np.clip(side, 8, 4096))
+
+
+def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices and faces of a mesh the chart route can code, unused vertices dropped.
+
+    Raises
+    ------
+    ValueError
+        One line naming what is wrong: no faces, non-finite coordinates, a single triangle,
+        faces repeating a vertex, triangles of zero area, an edge on more than two faces.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] == 0:
+        raise ValueError("the mesh has no triangles")
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise ValueError(f"expected vertices of shape (V, 3), got {vertices.shape}")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise ValueError("faces refer to vertices that do not exist")
+    bad = np.flatnonzero(~np.all(np.isfinite(vertices[np.unique(faces)]), axis=1))
+    if bad.size:
+        raise ValueError(f"vertex {np.unique(faces)[bad[0]]} has a non-finite coordinate (NaN or infinity)")
+    if faces.shape[0] == 1:
+        raise ValueError("the mesh is a single triangle: nothing to code as a surface")
+    repeated = np.flatnonzero(
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    )
+    if repeated.size:
+        raise ValueError(f"{_faces(repeated.size)} repeat a vertex (degenerate; first: face {repeated[0]})")
+    flat = np.flatnonzero(checks.flat_triangles(vertices, faces))
+    if flat.size:
+        raise ValueError(
+            f"{_faces(flat.size)} of zero area (degenerate; first: face {flat[0]}); remove or repair them"
+        )
+    edges, counts = checks.edge_face_counts(faces)
+    if np.any(counts > 2):
+        a, b = edges[np.argmax(counts > 2)]
+        raise ValueError(
+            f"non-manifold edge between vertices {a} and {b} (on {counts.max()} faces or more); "
+            "split the mesh into manifold pieces first"
+        )
+    used, faces = np.unique(faces, return_inverse=True)
+    return vertices[used], faces.reshape(-1, 3)
+
+
+def _faces(n: int) -> str:
+    return f"{n} face" if n == 1 else f"{n} faces"
+
+
+def _leb128(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        byte, value = value & 0x7F, value >> 7
+        out.append(byte | (0x80 if value else 0))
+        if not value:
+            return bytes(out)
+
+
+def _read_leb128(data: bytes, offset: int) -> tuple[int, int]:
+    value = shift = 0
+    for k in range(5):
+        if offset + k >= len(data):
+            break
+        value |= (data[offset + k] & 0x7F) << shift
+        if not data[offset + k] & 0x80:
+            return value, offset + k + 1
+        shift += 7
+    raise ValueError("not a chart mesh file (bad length field)")
+
+
+def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """The Draco stream of the faces, and the faces and positions in the decoder's vertex order.
+
+    Draco renumbers the vertices (and may split a pinched vertex or an inconsistently oriented
+    edge); its order does not depend on the positions' bits, so a fine encoding tells where
+    each of the stream's vertices came from.
+    """
+    from scipy.spatial import cKDTree
+
+    module = draco._module()
+
+    def once(points: np.ndarray, bits: int):
+        data = bytes(
+            module.encode(
+                points,
+                faces.astype(np.uint32),
+                quantization_bits=bits,
+                compression_level=draco.COMPRESSION_LEVEL,
+            )
+        )
+        decoded = module.decode(data)
+        return (
+            data,
+            np.asarray(decoded.faces, np.int64).reshape(-1, 3),
+            np.asarray(decoded.points, np.float64),
+        )
+
+    # Distinct carrier positions (Draco merges equal ones) that all quantize to 0 but the last:
+    # their residuals cost almost nothing (fertility.off: 2.53 bits per vertex, 2.77 with the
+    # mesh's own positions at 1 bit).
+    carrier = np.zeros((len(vertices), 3))
+    carrier[:, 0] = np.arange(len(vertices)) * 1e-7
+    carrier[-1] = 1.0
+    stream, carried, _ = once(carrier, CARRIER_BITS)
+    _, ordered, points = once(vertices, ORDER_BITS)
+    if not np.array_equal(carried, ordered) or len(points) != len(vertices) or len(ordered) != len(faces):
+        raise ValueError(
+            "the mesh has pinched (non-manifold) vertices or faces that cannot be oriented consistently "
+            "(a non-orientable surface); repair it first"
+        )
+    source = cKDTree(vertices).query(points)[1]
+    return stream, ordered, vertices[source]
+
+
+def encode_charts(
+    mesh,
+    bits: float,
+    *,
+    size: int | None = None,
+    transform: str = "bandelet",
+    frames: bool = True,
+    normal_weight: float = DEFAULT_NORMAL_WEIGHT,
+    restore: bool = False,
+    fallback: bool = True,
+    max_memory: int = MAX_MEMORY,
+) -> bytes:
+    """Compress a mesh of any topology into a chart mesh record of about ``bits`` bits.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+    bits : float
+        Target size of the whole record, in bits (the file lands within 3 % below it).
+    size : int, optional
+        Side of the geometry image (even, 8 to 4096); default :func:`chart_side`.
+    transform, frames, normal_weight, restore
+        As :func:`bandelets.surfaces.codec.encode_mesh`.
+    fallback : bool
+        Store Draco's own file of the mesh instead (record variant :data:`DRACO_ONLY`) where it
+        measures better at the same size (meshes up to :data:`TRIED_UP_TO` vertices).
+    max_memory : int
+        Refuse a mesh or an image whose coding needs more bytes.
+
+    Raises
+    ------
+    ValueError
+        A bad mesh (:func:`check_surface`), or a target below what the faces alone take.
+    """
+    import trimesh
+
+    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    checks.check_memory(len(faces), max_memory)
+    oriented = trimesh.Trimesh(vertices, faces, process=False)
+    trimesh.repair.fix_winding(oriented)  # Edgebreaker needs consistently oriented faces
+    faces_in = np.asarray(oriented.faces, np.int64)
+    stream, faces, positions = _connectivity(vertices, faces_in)
+    side = chart_side(len(positions)) if size is None else int(size)
+    if not (8 <= side <= 4096 and side % 2 == 0):
+        raise ValueError(f"the geometry image size must be even, from 8 to 4096, got {side}")
+    prefix = MAGIC + bytes([RECORD_VERSION])
+    head = _leb128(len(stream)) + stream
+    image_bits = bits - 8 * (len(prefix) + 1 + len(head) + 4)
+    if image_bits < 8 * (len(head) // 8 + 32):
+        raise ValueError(
+            f"a target of {bits / 8:.0f} bytes is too small for this mesh: its faces alone take "
+            f"{len(head)} bytes, its positions at least {len(head) // 8 + 32} more"
+        )
+    options = EncodeOptions(
+        kind="geometry-image",
+        transform=transform,
+        frames=frames,
+        normal_weight=normal_weight,
+        extension="symmetric",
+        restore=restore,
+        loop_filter=False,
+        max_memory=max_memory,
+    )
+    tried = len(positions) <= TRIED_UP_TO
+    labels = {}
+
+    def attempt(variant: int, side: int) -> tuple[float, int, bytes]:
+        if variant not in labels:
+            labels[variant] = charts.region_charts(faces, *CHART_VARIANTS[variant])
+        if size is None:  # many small charts (a soup of parts) need a larger image than the default
+            side = _fitting_side(labels[variant], faces, side)
+        layout = charts.layout(faces, labels[variant], side)
+        owned = charts.owners(layout)
+        image = atlas.fit(layout.pixels[owned], positions[layout.corner_vertex[owned]], side)
+        coded = encode_with_stats(image, options, bpp=image_bits / (side * side)).data
+        return (_trial_psnr(coded, layout, faces, positions, max_memory) if tried else 0.0), variant, coded
+
+    # The cut into charts first, at the default side; then, without a side asked for, the side.
+    best = max((attempt(variant, side) for variant in range(len(CHART_VARIANTS) if tried else 1)), key=_score)
+    if tried and size is None:
+        others = {int(np.clip(round(side * factor / 2.0) * 2, 8, 4096)) for factor in SIDE_FACTORS} - {side}
+        best = max([best, *(attempt(best[1], other) for other in sorted(others))], key=_score)
+    if tried and fallback:
+        best = max(
+            [best, _draco_trial(vertices, faces_in, positions, faces, bits - 8 * (len(prefix) + 6 + 4))],
+            key=_score,
+        )
+    _, variant, coded = best
+    if variant == DRACO_ONLY:
+        body = prefix + bytes([DRACO_ONLY]) + _leb128(len(coded)) + coded
+        return body + zlib.crc32(body).to_bytes(4, "little")
+    body = prefix + bytes([variant]) + head + coded
+    return body + zlib.crc32(body).to_bytes(4, "little")
+
+
+def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[float, int, bytes]:
+    """Draco's own file of the mesh within ``bits`` and its trial PSNR (``-inf`` if none fits)."""
+    import trimesh
+
+    from . import metrics
+
+    try:
+        data = draco.encode(trimesh.Trimesh(vertices, faces_in, process=False), bits / 8.0)
+        decoded = draco.decode(data)
+        psnr = metrics.hausdorff_psnr(
+            trimesh.Trimesh(positions, faces, process=False), decoded, TRIAL_SAMPLES
+        )
+    except ValueError:
+        return -np.inf, DRACO_ONLY, b""
+    return psnr, DRACO_ONLY, data
+
+
+def _fitting_side(labels: np.ndarray, faces: np.ndarray, side: int) -> int:
+    """The smallest side from ``side`` up (by quarters, even) whose image holds every chart."""
+    n_vertices = int(faces.max()) + 1
+    counts = np.bincount(np.unique(labels[:, None] * n_vertices + faces) // n_vertices)  # chart vertices
+    while True:
+        try:
+            charts.pack(counts, side)
+            return side
+        except ValueError:
+            if side >= 4096:
+                raise
+            side = min(4096, int(np.ceil(side * 1.25 / 2.0)) * 2)
+
+
+def _score(trial: tuple[float, int, bytes]) -> float:
+    return trial[0]
+
+
+def _positions(image: np.ndarray, layout: charts.Layout, n_vertices: int) -> np.ndarray:
+    """Every vertex read at its place in its first chart."""
+    owned = charts.owners(layout)
+    positions = np.zeros((n_vertices, 3))
+    positions[layout.corner_vertex[owned]] = atlas.sample(image, layout.pixels[owned])
+    return positions
+
+
+def _trial_psnr(coded: bytes, layout, faces: np.ndarray, positions: np.ndarray, max_memory: int) -> float:
+    """Hausdorff PSNR of the mesh a coded image decodes to (:data:`TRIAL_SAMPLES` samples)."""
+    import trimesh
+
+    from . import metrics
+
+    header, streams = unpack(coded)
+    image = decode_parsed(header, streams, max_memory=max_memory)
+    decoded = trimesh.Trimesh(_positions(image, layout, len(positions)), faces, process=False)
+    try:
+        return metrics.hausdorff_psnr(
+            trimesh.Trimesh(positions, faces, process=False), decoded, TRIAL_SAMPLES
+        )
+    except ValueError:  # a decoded mesh of no area
+        return -np.inf
+
+
+def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
+    """Rebuild the mesh of a chart mesh record (:func:`encode_charts`).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The input's faces (in Draco's vertex order) and decoded positions.
+
+    Raises
+    ------
+    ValueError
+        A corrupt or truncated record.
+    """
+    import trimesh
+
+    data = bytes(data)
+    if len(data) < 10 or not is_chart_file(data):
+        raise ValueError("not a chart mesh file")
+    if zlib.crc32(data[:-4]) != int.from_bytes(data[-4:], "little"):
+        raise ValueError("corrupt chart mesh file (CRC mismatch)")
+    if data[4] != RECORD_VERSION:
+        raise ValueError(f"chart mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
+    variant = data[5]
+    if variant != DRACO_ONLY and variant >= len(CHART_VARIANTS):
+        raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
+    length, offset = _read_leb128(data, 6)
+    if offset + length > len(data) - 4:
+        raise ValueError("truncated chart mesh file")
+    stream, image_data = data[offset : offset + length], data[offset + length : -4]
+    try:
+        decoded = draco._module().decode(stream)
+    except Exception as err:  # DracoPy raises its own error types
+        raise ValueError(f"corrupt chart mesh file (faces: {err})") from None
+    faces = np.asarray(decoded.faces, np.int64).reshape(-1, 3)
+    n_vertices = len(np.asarray(decoded.points).reshape(-1, 3))
+    if len(faces) == 0 or faces.max() >= n_vertices or np.unique(faces).size != n_vertices:
+        raise ValueError("corrupt chart mesh file (faces)")
+    if variant == DRACO_ONLY:  # the positions are Draco's own
+        if image_data:
+            raise ValueError("corrupt chart mesh file (bytes after the Draco stream)")
+        return trimesh.Trimesh(np.asarray(decoded.points, np.float64).reshape(-1, 3), faces, process=False)
+    header, streams = unpack(image_data)
+    if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
+        raise ValueError("corrupt chart mesh file (not a square geometry image)")
+    checks.check_memory(len(faces), max_memory)
+    image = decode_parsed(header, streams, max_memory=max_memory)
+    layout = charts.layout(faces, charts.region_charts(faces, *CHART_VARIANTS[variant]), header.width)
+    return trimesh.Trimesh(_positions(image, layout, n_vertices), faces, process=False)
+
+
+def _stretch(pixels: np.ndarray, corners: np.ndarray, positions: np.ndarray) -> float:
+    """L2 geometric stretch of the layout (Sander et al.), normalized to 1 at best: the RMS over
+    the surface of the map's singular values, over that of a map preserving the total area.
+    Triangles flat in the layout (three vertices on one side of a square) are left out."""
+    uv = pixels[corners]  # (F, 3, 2)
+    xyz = positions  # (F, 3, 3)
+    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    area_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    keep = np.abs(area_uv) > 1e-6 * np.median(np.abs(area_uv))
+    q1, q2 = xyz[keep, 1] - xyz[keep, 0], xyz[keep, 2] - xyz[keep, 0]
+    a = 2.0 * area_uv[keep]
+    # Partial derivatives of the positions along the layout's two axes.
+    ds = (q1 * d2[keep, 1:2] - q2 * d1[keep, 1:2]) / a[:, None]
+    dt = (q2 * d1[keep, 0:1] - q1 * d2[keep, 0:1]) / a[:, None]
+    area_3d = 0.5 * np.linalg.norm(np.cross(q1, q2), axis=1)
+    mean_square = np.sum(area_3d * 0.5 * (np.sum(ds**2, 1) + np.sum(dt**2, 1))) / np.sum(area_3d)
+    return float(np.sqrt(mean_square * np.sum(np.abs(area_uv[keep])) / np.sum(area_3d)))
+
+
+def chart_report(mesh, size: int | None = None) -> dict:
+    """How the chart route lays out a mesh, before any coding (``geometry-image --report``).
+
+    Returns
+    -------
+    dict
+        ``charts``: their count; ``side``: of the image; ``used``: share of the image inside the
+        charts' squares; ``stretch``: :func:`_stretch` (1 at best; Tutte's uniform weights squeeze
+        the triangles along the squares' sides, which this mean weighs heavily);
+        ``seam_copies``: extra copies of the vertices on the seams, over the vertex count;
+        ``psnr``: Hausdorff PSNR (dB) against ``mesh`` of the mesh read back from the uncoded
+        image (the ceiling no rate passes); ``image``: the image, shape (side, side, 3).
+    """
+    import trimesh
+
+    from . import metrics
+
+    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    labels = charts.region_charts(faces)
+    side = _fitting_side(labels, faces, chart_side(len(vertices))) if size is None else int(size)
+    layout = charts.layout(faces, labels, side)
+    owned = charts.owners(layout)
+    image = atlas.fit(layout.pixels[owned], vertices[layout.corner_vertex[owned]], side)
+    back = np.zeros_like(vertices)
+    back[layout.corner_vertex[owned]] = atlas.sample(image, layout.pixels[owned])
+    sizes = charts.pack(np.bincount(layout.corner_chart), side)[1]
+    return {
+        "charts": int(labels.max()) + 1,
+        "side": side,
+        "used": float(np.sum(sizes.astype(np.float64) ** 2) / side**2),
+        "stretch": _stretch(layout.pixels, layout.face_corners, vertices[faces]),
+        "seam_copies": float(len(owned) / len(vertices) - 1.0),
+        "psnr": metrics.hausdorff_psnr(mesh, trimesh.Trimesh(back, faces, process=False)),
+        "image": image,
+    }

@@ -1,0 +1,154 @@
+"""The multi-chart route of the mesh codec: open, higher-genus and several-part meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+trimesh = pytest.importorskip("trimesh")
+pytest.importorskip("DracoPy")
+pytest.importorskip("pymeshlab")
+
+from bandelets.surfaces import chartcodec, charts, codec, metrics  # noqa: E402
+
+
+def _topology(mesh) -> tuple[int, int]:
+    """Components and boundary loops, welded by position."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    welded.merge_vertices()
+    faces = np.asarray(welded.faces)
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    n = len(welded.vertices)
+
+    def count(pairs):
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        labels = connected_components(graph, directed=False)[1]
+        return np.unique(labels[np.unique(pairs)]).size if len(pairs) else 0
+
+    return count(unique), count(unique[counts == 1])
+
+
+def _round_trip(mesh, bits_per_vertex: float):
+    data = codec.encode_mesh(mesh, bits_per_vertex=bits_per_vertex)
+    assert chartcodec.is_chart_file(data)
+    assert len(data) <= bits_per_vertex * len(mesh.vertices) / 8
+    return codec.decode_mesh(data)
+
+
+def test_torus_round_trip():
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=48, minor_sections=16)
+    decoded = _round_trip(torus, 12)
+    assert len(decoded.faces) == len(torus.faces) and len(decoded.vertices) == len(torus.vertices)
+    assert _topology(decoded) == (1, 0)
+    euler = len(decoded.vertices) - len(decoded.edges_unique) + len(decoded.faces)
+    assert euler == 0  # still a torus
+    assert metrics.hausdorff_psnr(torus, decoded, samples=20_000) > 45
+
+
+def test_cut_sphere_keeps_its_boundary_loop():
+    sphere = trimesh.creation.icosphere(3)
+    keep = ~np.any(sphere.vertices[sphere.faces][:, :, 2] > 0.5, axis=1)
+    cut = trimesh.Trimesh(sphere.vertices, sphere.faces[keep])
+    cut.remove_unreferenced_vertices()
+    decoded = _round_trip(cut, 16)
+    assert _topology(cut) == (1, 1)
+    assert _topology(decoded) == (1, 1)
+    assert metrics.hausdorff_psnr(cut, decoded, samples=20_000) > 45
+
+
+def test_two_components_kept():
+    first = trimesh.creation.icosphere(3)
+    second = trimesh.creation.icosphere(3).apply_translation([3.0, 0, 0])
+    both = trimesh.util.concatenate([first, second])
+    decoded = _round_trip(both, 16)
+    assert _topology(decoded) == (2, 0)
+    # Each part comes back in its place: both halves of the decoded box hold one sphere.
+    centres = decoded.vertices[:, 0]
+    assert np.sum(centres > 1.5) == np.sum(centres < 1.5) == len(first.vertices)
+    assert metrics.hausdorff_psnr(both, decoded, samples=20_000) > 45
+
+
+def test_closed_genus0_mesh_stays_spherical():
+    data = codec.encode_mesh(trimesh.creation.icosphere(2), bpp=2.0, size=32)
+    assert not chartcodec.is_chart_file(data)
+
+
+def _square_grid(n: int = 4):
+    """An open n x n grid of squares, two triangles each."""
+    ij = np.arange(n + 1)
+    x, y = np.meshgrid(ij, ij, indexing="ij")
+    vertices = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]).astype(float)
+    index = lambda i, j: i * (n + 1) + j  # noqa: E731
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            faces += [
+                [index(i, j), index(i + 1, j), index(i + 1, j + 1)],
+                [index(i, j), index(i + 1, j + 1), index(i, j + 1)],
+            ]
+    return vertices, np.array(faces)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda v, f: (v, f[:0]), "no triangles"),
+        (lambda v, f: (np.where(np.arange(len(v))[:, None] == 3, np.nan, v), f), "vertex 3 has a non-finite"),
+        (lambda v, f: (v, f[:1]), "single triangle"),
+        (lambda v, f: (v, np.vstack([f, [[0, 0, 1]]])), "repeat a vertex"),
+        (lambda v, f: (np.vstack([v, [[0, 0.5, 0]]]), np.vstack([f, [[0, 1, len(v)]]])), "zero area"),
+        (
+            lambda v, f: (np.vstack([v, [[0.5, 0.5, 1.0]]]), np.vstack([f, [[0, 6, len(v)]]])),
+            "non-manifold edge",
+        ),
+    ],
+)
+def test_bad_meshes_refused_with_one_line(edit, message):
+    vertices, faces = edit(*_square_grid())
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    with pytest.raises(ValueError, match=message) as error:
+        codec.encode_mesh(mesh, bits_per_vertex=16)
+    assert "\n" not in str(error.value)
+
+
+def test_every_chart_is_a_disk_and_the_layout_is_inside_the_image():
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=48, minor_sections=16)
+    faces = np.asarray(torus.faces)
+    labels = charts.region_charts(faces, faces_per_chart=200)
+    for chart in range(labels.max() + 1):
+        assert charts.boundary_loop(faces[labels == chart]) is not None
+    layout = charts.layout(faces, labels, 64)
+    assert layout.pixels.min() >= 0 and layout.pixels.max() <= 63
+    assert np.array_equal(
+        np.unique(layout.corner_vertex[charts.owners(layout)]), np.arange(len(torus.vertices))
+    )
+
+
+def test_corrupt_chart_file_refused():
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12)
+    data = bytearray(codec.encode_mesh(torus, bits_per_vertex=16))
+    data[len(data) // 2] ^= 0xFF
+    with pytest.raises(ValueError, match="corrupt"):
+        codec.decode_mesh(bytes(data))
+
+
+def test_draco_only_record_decodes_to_dracos_mesh():
+    import zlib
+
+    from bandelets.surfaces import draco
+
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12)
+    stream = draco.encode(torus, 2000)
+    body = chartcodec.MAGIC + bytes([chartcodec.RECORD_VERSION, chartcodec.DRACO_ONLY])
+    body += chartcodec._leb128(len(stream)) + stream
+    decoded = codec.decode_mesh(body + zlib.crc32(body).to_bytes(4, "little"))
+    expected = draco.decode(stream)
+    assert np.array_equal(decoded.faces, expected.faces)
+    assert np.allclose(decoded.vertices, expected.vertices)
+    with pytest.raises(ValueError, match="bytes after the Draco stream"):
+        body += b"\0"
+        codec.decode_mesh(body + zlib.crc32(body).to_bytes(4, "little"))
