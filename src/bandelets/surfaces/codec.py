@@ -139,7 +139,7 @@ class SphericalMesh:
     normals : ndarray of float, shape (V, 3)
         Unit vertex normals.
     distortion : dict
-        :func:`.sphere.area_distortion` of the parameterization.
+        :func:`.stretch.area_distortion` of the parameterization.
     """
 
     vertices: np.ndarray
@@ -160,7 +160,7 @@ class GeometryImage:
     normals : ndarray of float, shape (n, n, 3)
         Unit normals (vertex normals interpolated) at the same points.
     distortion : dict
-        :func:`.sphere.area_distortion` of the spherical parameterization.
+        :func:`.stretch.area_distortion` of the spherical parameterization.
     """
 
     positions: np.ndarray

@@ -30,7 +30,7 @@ def parameterization_report(mesh, spherical, size: int) -> dict:
     -------
     dict
         ``stretch``: L2 geometric stretch of the sphere map (1 at best, see
-        :func:`.sphere.area_distortion`); ``sample_area_ratio``: largest over smallest surface
+        :func:`.stretch.area_distortion`); ``sample_area_ratio``: largest over smallest surface
         area around a sample of the geometry image (a third of its triangles' areas);
         ``psnr``: Hausdorff PSNR (dB) of the uncoded geometry-image mesh against ``mesh``;
         ``area``: its area over ``mesh``'s.
