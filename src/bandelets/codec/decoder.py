@@ -12,7 +12,7 @@ from itertools import islice
 import numpy as np
 
 from ..coding import lossless, rangecoder
-from ..coding.image import code_image, code_lifting, new_coders
+from ..coding.image import code_image, new_coders
 from ..format.container import WORKERS, check_region, is_tiled, output_of, read
 from ..format.fields import (
     FORMAT_VERSION,
@@ -26,6 +26,7 @@ from ..format.fields import (
     padded_shape,
 )
 from ..format.header import Header, unpack
+from ..format.levels import parts
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
@@ -174,12 +175,11 @@ def decoded_bins(
 ) -> tuple[list, list[np.ndarray], list | None]:
     """The quadtrees, the bin indices, shape (H', W') per channel, and the directions of the
     levels lifted along directions (None without), that the streams hold."""
-    coders = new_coders(streams)
+    coders = new_coders(parts(streams, header.segments))
     try:
-        trees, quantized, _ = code_image(coders, header)
-        lifting = code_lifting(coders[1], header)
-        for coder in coders:
-            coder.check()
+        lifting: list = []
+        trees, quantized, _ = code_image(coders, header, lifting=lifting)
+        lifting = lifting if header.lifting else None
     except rangecoder.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
     shape = padded_shape((header.height, header.width), header.levels)

@@ -13,7 +13,8 @@ Layout (little endian)::
     7       1     wavelet levels (1 to MAX_LEVELS), plus 8 times the channels coded less one (1 to
                   4; a normal map: 3, or 2 when z is rebuilt, see below), plus 32 times the source's
                   sample depth: DEPTH_CODES (0 float, 1 8-bit, 2 16-bit: bits of PNG or TIFF
-                  samples, for decoding back to them); the top bit is 0
+                  samples, for decoding back to them), plus 128 if a normal map's green channel
+                  points down (DirectX; format version 19; 0: up, OpenGL)
     8       1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restore.restoration`), plus 128
                   if the file has a loop filter (format version 11)
     9       1     finest wavelet levels lifted along directions (0: none;
@@ -22,16 +23,18 @@ Layout (little endian)::
                   64 more if its rows run against the slope (format version 15, see below),
                   plus 128 if the image is folded (format version 14, see below)
     10      4     threshold T (float32, MIN_THRESHOLD to MAX_THRESHOLD)
-    14      ...   height, width, then the byte lengths of the three streams (quadtree splits,
-                  directions, coefficients): five unsigned LEB128 integers (7 bits a byte, low
+    14      ...   height, width, then the byte lengths of the segments of the three streams
+                  (quadtree splits, directions, coefficients) of each group of levels (format
+                  version 19: ``3 (levels + 1)`` lengths, 3 for a lossless file; group by group,
+                  :mod:`bandelets.format.levels`): unsigned LEB128 integers (7 bits a byte, low
                   bits first, the top bit set on every byte but the last; at most 5 bytes, no
                   needless trailing byte, below 2**32)
     ...     ...   geometry-image options (kind 2 only, see below)
-    ...     ...   the three streams
+    ...     ...   the segments, group by group (coarse to fine), each group's three in order
     ...     ...   the loop filter (format version 11; when byte 8 says so; :mod:`bandelets.format.filter`)
     end-4   4     CRC32 of everything before it
 
-The history of the format's versions is in ``docs/history.md``; this build reads version 18 only.
+The history of the format's versions is in ``docs/history.md``; this build reads version 19 only.
 
 The layout of a normal map's source, which the decoder returns (since version 11 it also says
 how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for the others):
@@ -96,6 +99,7 @@ from .fields import (
     Transform1D,
     Wavelet,
 )
+from .levels import group_count, interleave, segment_lengths, split
 from .filter import LoopFilter, most_filter_bytes, pack_filter, unpack_filter
 
 __all__ = ["HEADER_BYTES", "Header", "implied_options", "pack", "streams_offset", "unpack"]
@@ -120,8 +124,10 @@ _DEPTH_OF = {code: depth for depth, code in DEPTH_CODES.items()}
 _FIXED = struct.Struct("<4sBBBBBBf")
 #: Most bytes of an LEB128 integer (below 2**32).
 _MOST_VARINT_BYTES = 5
-#: Size of the smallest possible file: the fixed header, five one-byte integers and the CRC.
+#: Size of the smallest possible file: the fixed header, five one-byte integers (a lossless file) and the CRC.
 HEADER_BYTES = _FIXED.size + 5 + 4
+#: The green conventions of a normal map (byte 7's top bit: 0 up, OpenGL; 1 down, DirectX).
+GREENS = ("up", "down")
 #: Options of a geometry image: extension and frames, normal weight (then the LEB128 vertices of
 #: the source mesh).
 _GEOMETRY = struct.Struct("<Bf")
@@ -210,6 +216,12 @@ class Header:
     #: version
     #: 15): 0 not, else the ``sign`` of :func:`bandelets.transform.riesz.forward` (1 or -1).
     riesz: int = 0
+    #: The byte lengths of the segments of the three streams, group by group (format version 19,
+    #: :mod:`bandelets.format.levels`); empty: every byte in the last group.
+    segments: tuple = ()
+    #: Where a normal map's green channel (y) points: "up" (OpenGL) or "down" (DirectX); format
+    #: version 19, a label the decoder keeps (``bandelets decode --green`` flips y to the other).
+    green: str = "up"
 
     def __post_init__(self) -> None:
         # The file holds the threshold and the normal weight as float32s (format version 17): a
@@ -234,7 +246,8 @@ def streams_offset(data: bytes) -> int:
     image): :class:`FormatError` where its header is cut short or its integers malformed."""
     if len(data) < _FIXED.size:
         raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
-    start = _varints(data, _FIXED.size, 5)[1]
+    groups = group_count(data[7] % 8, _TRANSFORM_OF.get(data[6] % 4))
+    start = _varints(data, _FIXED.size, 2 + 3 * groups)[1]
     if data[5] == KIND_CODES[Kind.GEOMETRY_IMAGE]:
         start = _varints(data, start + _GEOMETRY.size, 1)[1]
     return start
@@ -276,12 +289,13 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         + 4 * WAVELET_CODES[header.wavelet]
         + 32 * TRANSFORM_1D_CODES[header.transform_1d]
         + 64 * LAYOUT_CODES[header.layout],
-        header.levels + 8 * (header.channels - 1) + 32 * DEPTH_CODES[header.depth],
+        header.levels + 8 * (header.channels - 1) + 32 * DEPTH_CODES[header.depth] + 128 * _green(header),
         header.restoration + (128 if header.loop_filter is not None else 0),
         header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
         header.threshold,
     )
-    body += b"".join(_varint(n) for n in (header.height, header.width, *map(len, streams)))
+    segments = segment_lengths(header.levels, header.transform, header.segments, streams)
+    body += b"".join(_varint(n) for n in (header.height, header.width, *(n for g in segments for n in g)))
     if header.layout != Layout.XYZ and (header.kind, header.channels) != (Kind.NORMAL_MAP, 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.folded and not _can_fold(
@@ -305,7 +319,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     if header.kind == Kind.GEOMETRY_IMAGE:
         body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
         body += _varint(header.mesh_vertices)
-    body += b"".join(streams)
+    body += interleave(streams, segments)
     if header.loop_filter is not None:
         body += pack_filter(header.loop_filter, header.channels)
     return body + struct.pack("<I", zlib.crc32(body))
@@ -418,6 +432,19 @@ def unpack(
     ------
     FormatError
     """
+    header, parts = unpack_prefix(data, whole=True, max_side=max_side, max_samples=max_samples)
+    return header, tuple(b"".join(p) for p in parts)
+
+
+def unpack_prefix(
+    data: bytes, *, whole: bool = False, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLES
+) -> tuple[Header, tuple[list[bytes], list[bytes], list[bytes]]]:
+    """Parse and validate a .bdl file or a prefix of one (``whole``: the file, as :func:`unpack`).
+
+    Returns the header and the segments of each stream (:mod:`bandelets.format.levels`) of the
+    groups ``data`` holds in whole. A prefix shorter than the file is not checked by the CRC (it is
+    at the end): its header is checked as a whole file's, and its loop filter is not read.
+    """
     if len(data) < 4 or data[:4] != MAGIC:
         raise FormatError("not a .bdl file (bad magic number)")
     if len(data) < HEADER_BYTES:
@@ -433,10 +460,17 @@ def unpack(
             "a tiled .bdl file: read it whole with bandelets.decode (bandelets.format.container)"
         )
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
-    if zlib.crc32(body) != crc:
+    complete = zlib.crc32(body) == crc
+    if whole and not complete:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
+    if not complete:  # a prefix: every byte is the file's
+        body = data
     kind_code, codes, sizes, restoration, lifting_byte, threshold = fields[2:]
-    (height, width, *lengths), start = _varints(body, _FIXED.size, 5)
+    green, sizes = sizes // 128, sizes % 128
+    groups = group_count(sizes % 8, _TRANSFORM_OF.get(codes % 4))
+    (height, width, *flat), start = _varints(body, _FIXED.size, 2 + 3 * groups)
+    segments = tuple(tuple(flat[3 * g : 3 * g + 3]) for g in range(groups))
+    lengths = [sum(g[s] for g in segments) for s in range(3)]
     transform_code, wavelet_code, along_code, layout_code = (
         codes % 4,
         codes // 4 % 8,
@@ -458,10 +492,10 @@ def unpack(
     checks = _consistency(
         kind, channels, transform, wavelet, depth, layout, along, height, width, levels, threshold,
         restoration, filtered, lifting, folded, riesz, lifting_byte,
-        (kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code), lengths, len(body)
-        - start,
-        max_side, max_samples,
+        (kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code), lengths,
+        len(body) - start if complete else sum(lengths) + (filtered and 1), max_side, max_samples,
     )  # fmt: skip
+    checks.append((not green or kind == Kind.NORMAL_MAP, f"a green convention for a {kind}"))
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
@@ -471,7 +505,9 @@ def unpack(
         options = _geometry_options(*stored, vertices, wavelet, levels, height, width)
     else:
         options = implied_options(kind, channels)
-    loop_filter = unpack_filter(body[start + sum(lengths) :], channels) if filtered else None
+    loop_filter = None
+    if filtered and complete:
+        loop_filter = unpack_filter(body[start + sum(lengths) :], channels)
     header = Header(
         height=height,
         width=width,
@@ -490,12 +526,18 @@ def unpack(
         loop_filter=loop_filter,
         folded=bool(folded),
         riesz=riesz,
+        segments=segments,
+        green=GREENS[green],
     )
-    streams = []
-    for n in lengths:
-        streams.append(bytes(data[start : start + n]))
-        start += n
-    return header, tuple(streams)
+    return header, split(body, start, segments)
+
+
+def _green(header: Header) -> int:
+    if header.green not in GREENS or (header.green == "down" and header.kind != Kind.NORMAL_MAP):
+        raise ValueError(f"green is 'up' or 'down', and 'down' for a normal map only: {header}")
+    return GREENS.index(header.green)
+
+
 
 
 #: Byte 9's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
