@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from ..coding.image import code_image, new_coders
-from ..format.levels import parts
 from ..format.fields import LOSSLESS, padded_shape
 from ..format.header import Header, unpack
+from ..format.levels import parts
 from ..format.quantizer import dequantize
 from ..transform.bandeletize import debandeletize
 from ..transform.geometry import directions

@@ -99,8 +99,8 @@ from .fields import (
     Transform1D,
     Wavelet,
 )
-from .levels import group_count, interleave, segment_lengths, split
 from .filter import LoopFilter, most_filter_bytes, pack_filter, unpack_filter
+from .levels import group_count, interleave, segment_lengths, split
 
 __all__ = ["HEADER_BYTES", "Header", "implied_options", "pack", "streams_offset", "unpack"]
 
@@ -536,8 +536,6 @@ def _green(header: Header) -> int:
     if header.green not in GREENS or (header.green == "down" and header.kind != Kind.NORMAL_MAP):
         raise ValueError(f"green is 'up' or 'down', and 'down' for a normal map only: {header}")
     return GREENS.index(header.green)
-
-
 
 
 #: Byte 9's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
