@@ -37,6 +37,7 @@ from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
 from ..transform.normals import unit_normals
 from ..transform.wavelets import wavedec, waverec
+from .levels import decode_level
 
 __all__ = [
     "check",
@@ -57,6 +58,7 @@ def decode(
     max_work: int = MAX_WORK,
     region: tuple[int, int, int, int] | None = None,
     progress: bool = False,
+    level: int = 0,
     **limits,
 ) -> np.ndarray:
     """Decode a .bdl file.
@@ -81,6 +83,12 @@ def decode(
         Decode only this box of the image: of a tiled file, only the tiles it touches.
     progress : bool
         A progress bar on stderr over the tiles of a tiled file.
+    level : int
+        Decode the image at ``1 / 2**level`` of the size (each side rounded up) from the first bytes
+        of the file only (format version 19; ``data`` may be a prefix of the file that holds that
+        level, :func:`bandelets.codec.levels.level_bytes`): the wavelet transform's coarse
+        approximation, without restoration or loop filter (:mod:`bandelets.codec.levels`).
+        0: the full decode. Not with ``region``; not of a lossless file.
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.format.header.unpack`).
 
@@ -110,6 +118,10 @@ def decode(
         data = bytes(memoryview(data))
     except TypeError:
         raise TypeError(f"decode takes the bytes of a .bdl file, not {type(data).__name__}") from None
+    if level:
+        if region is not None:
+            raise ValueError("decode at a level takes no region: crop the image it returns")
+        return decode_level(data, level, **limits)
     if is_tiled(data):
         return _decode_tiles(
             data,
