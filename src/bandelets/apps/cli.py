@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import os
 import sys
@@ -30,6 +31,7 @@ from ..format.fields import (
     WAVELETS,
     Kind,
 )
+from . import deliver
 
 __all__ = ["main"]
 
@@ -150,6 +152,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "(bounded memory at any size, a region decodes alone; default: tiles of 512 only for an image "
         "that would not fit --max-memory in one piece)",
     )
+    deliver.add_green_option(p, decoding=False)
     _common(p)
 
     p = sub.add_parser("decode", help=f"decode a .bdl file into {FORMATS}")
@@ -157,8 +160,9 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "output",
         help=".png or .tif (the source's bit depth: 8, 16, or 16-bit PNG and float TIFF for float "
-        "sources), .exr or .npy (float32)",
+        "sources), .exr or .npy (float32); .ktx2 or .dds (a normal map, for the GPU)",
     )
+    deliver.add_decode_options(p)
     p.add_argument(
         "--no-restore",
         action="store_true",
@@ -400,6 +404,10 @@ def _encode(args) -> None:
         lossless=True if args.lossless else False if args.no_lossless else None,
     )
     encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
+    if args.green == "down":
+        if args.kind != "normal-map":
+            raise _UsageError("--green is for normal maps (--kind normal-map)")
+        encoded = dataclasses.replace(encoded, data=deliver.with_green(encoded.data, args.green))
     write_atomic(args.output, encoded.data)
     if not args.quiet:
         from .summary import encode_summary
@@ -418,7 +426,11 @@ def _decode(args) -> None:
     _check_output(args.input, args.output, args.force)
     from ..io.files import check_suffix
 
-    check_suffix(args.output, "output")
+    gpu = deliver.gpu_suffix(args.output)
+    if not gpu:
+        check_suffix(args.output, "output")
+    if args.level < 0:
+        raise _UsageError(f"--level is 0 or more, not {args.level}")
     _working(args.quiet)
     start = time.perf_counter()
     from ..codec.decoder import decode
@@ -428,14 +440,32 @@ def _decode(args) -> None:
     with _about(args.input):
         data = _read_bdl(args.input)
         header = header_of(data)
+        if (gpu or args.green) and header.kind != Kind.NORMAL_MAP:
+            raise ValueError("a .ktx2 or .dds output and --green are for normal maps")
         progress = sys.stderr.isatty() and not args.quiet
-        decoded = decode(data, restore=not args.no_restore, max_memory=args.max_memory, progress=progress)
-    write_array(args.output, decoded, header.kind, header.depth)
+        options = {"restore": not args.no_restore, "max_memory": args.max_memory, "progress": progress}
+        levels = deliver.decoded_levels(data, args.level, args.mips and not gpu, decode, **options)
+    levels = [deliver.flip_green(x, header.green, args.green) for x in levels]
+    decoded, added = levels[0], ""
+    if gpu:
+        from ..io.gpu import export
+
+        # BC5 for a map coded as two channels (x, y or equidistant coordinates), BC7 for three.
+        done = export(
+            args.output, decoded, args.gpu or ("bc5" if header.channels == 2 else None), mips=args.mips
+        )
+        added = f", {done.fmt.upper()} adds {done.error.mean:.3f} deg mean angle ({done.error.p99:.3f} p99)"
+    elif args.mips:
+        for k, image in enumerate(levels):
+            write_array(deliver.mip_name(args.output, k), image, header.kind, header.depth)
+    else:
+        write_array(args.output, decoded, header.kind, header.depth)
     if not args.quiet:
         from .summary import decode_summary
 
         elapsed = time.perf_counter() - start
-        print(decode_summary(args.input, args.output, decoded, header, elapsed), file=sys.stderr)
+        line = decode_summary(args.input, args.output, decoded, header, elapsed) + added
+        print(line + (f", {len(levels)} levels" if args.mips and not gpu else ""), file=sys.stderr)
 
 
 @contextlib.contextmanager
@@ -458,6 +488,7 @@ def _read_bdl(path: str) -> bytes:
 def _info(args) -> None:
     _check_input(args.input)
     _working()
+    from ..codec.levels import level_bytes
     from ..format.container import header_of, is_tiled, read
     from ..format.fields import FORMAT_VERSION
     from ..format.header import unpack
@@ -501,13 +532,14 @@ def _info(args) -> None:
             "coefficients": 8 * len(streams[2]),
         },
         "format_version": FORMAT_VERSION,
+        "level_bytes": level_bytes(data),
     }
     if is_tiled(data):
         info |= {"tile": grid.tile, "tiles": len(grid.boxes)}
     if header.kind == Kind.GEOMETRY_IMAGE:
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
     if header.kind == Kind.NORMAL_MAP:
-        info |= {"layout": header.layout, "folded": header.folded}
+        info |= {"layout": header.layout, "folded": header.folded, "green": header.green}
     if header.kind == Kind.GEOMETRY_IMAGE or header.frames:
         info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))

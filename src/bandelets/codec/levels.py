@@ -5,7 +5,8 @@
 hold the approximation and the detail levels coarser than ``k`` (:mod:`bandelets.format.levels`),
 which are the first bytes of the file. The inverse transform stops ``k`` levels early
 (:func:`bandelets.transform.coarse.coarse`), filtered to the box averages of the image it
-synthesises (:func:`bandelets.transform.coarse.box_filtered`: a mip), with the directions of the lifted levels it inverts,
+synthesises (:func:`bandelets.transform.coarse.box_filtered`: a mip), with the directions of the
+lifted levels it inverts,
 the local frames of the levels it reads and the Riesz pair turned back on the coarse grid (the
 angle of a frequency is the same on both grids); a normal map's vectors are renormalised. No
 restoration and no loop filter (they are fitted to the full image). Beyond the file's wavelet
