@@ -146,7 +146,7 @@ def level_bytes(data: bytes) -> list[int]:
     if is_tiled(data):
         per = [level_bytes(tile) for tile in _tile_bytes(data)]
         return [sum(p[min(k, len(p) - 1)] for p in per) for k in range(max(len(p) for p in per))]
-    header, _ = unpack_prefix(data, whole=True)
+    header, _ = unpack_prefix(data)  # a prefix too (its level 0: its own size)
     start = streams_offset(data)
     sizes = [sum(g) for g in header.segments]
     out = [len(data)]
