@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from headerints import leb128, read_integers
+from headerints import integer_count, leb128, read_integers
 
 import bandelets
 from bandelets.codec.options import EncodeOptions
@@ -31,6 +31,7 @@ from bandelets.format.fields import (
     Wavelet,
 )
 from bandelets.format.header import HEADER_BYTES, Header, implied_options, pack, streams_offset, unpack
+from bandelets.format.levels import group_count
 
 FIXED_SIZE = 14  # fixed fields, before the five LEB128 integers (sides, stream lengths)
 GEOMETRY_SIZE = 5  # options of a geometry image, before its LEB128 vertex count
@@ -70,10 +71,10 @@ def _bits(data: bytes, offset: int, mask: int, value: int) -> bytes:
     return _patched(data, offset, "<B", data[offset] & ~mask | value << low)
 
 
-def _with_integers(data: bytes, start: int, values: dict[int, int], count: int = 5) -> bytes:
+def _with_integers(data: bytes, start: int, values: dict[int, int], count: int | None = None) -> bytes:
     """``data`` with the ``count`` LEB128 integers from ``start`` rewritten (``values``: index ->
     value; 0 height, 1 width, 2 to 4 the stream lengths) and a valid CRC again."""
-    old, end = read_integers(data, start, count)
+    old, end = read_integers(data, start, count or integer_count(data))
     new = [values.get(i, v) for i, v in enumerate(old)]
     return _with_crc(data[:start] + b"".join(map(leb128, new)) + data[end:-4])
 
@@ -205,11 +206,14 @@ def test_header_round_trip(header):
     assert data[:4] == MAGIC
     assert data[4] == FORMAT_VERSION
     extra = GEOMETRY_SIZE + 1 if header.kind == "geometry-image" else 0  # 1: the vertices, 0
-    integers = len(b"".join(map(leb128, (header.height, header.width, *map(len, streams)))))
+    # Format version 19: the segments of every group of levels, all in the last one here.
+    segments = ((0, 0, 0),) * (group_count(header.levels, header.transform) - 1) + (tuple(map(len, streams)),)
+    lengths = [n for group in segments for n in group]
+    integers = len(b"".join(map(leb128, (header.height, header.width, *lengths))))
     assert len(data) == FIXED_SIZE + integers + extra + sum(map(len, streams)) + 4
     assert streams_offset(data) == FIXED_SIZE + integers + extra
     got, got_streams = unpack(data)
-    assert got == header
+    assert got == replace(header, segments=segments)
     assert got_streams == streams
 
 
@@ -475,7 +479,7 @@ def geometry_file():
 
 def _options_at(data: bytes) -> int:
     """Where a geometry image's options start: after the five integers of its header."""
-    return read_integers(data, FIXED_SIZE, 5)[1]
+    return read_integers(data, FIXED_SIZE, integer_count(data))[1]
 
 
 def test_geometry_options_are_read_back(geometry_file):
