@@ -323,7 +323,7 @@ def test_truncated_header(small_file):
         (7, 7, 0, "levels"),
         (7, 7, 7, "levels"),
         (7, 96, 3, "depth"),
-        (7, 128, 1, "depth"),
+        (7, 128, 1, "green convention"),  # format 19: the top bit is a normal map's green
         (8, 127, 101, "restoration iterations"),
         (9, 31, 4, "directional levels"),
         (9, 128, 1, "folded"),  # a gray image
@@ -477,6 +477,14 @@ def geometry_file():
     return bandelets.encode(p, threshold=0.01, kind="geometry-image", frames=True, extension="spherical")
 
 
+def _levels(data: bytes, levels: int) -> bytes:
+    """``data`` at another count of wavelet levels, more groups of empty segments in front (format 19)."""
+    old, end = read_integers(data, FIXED_SIZE, integer_count(data))
+    patched = _bits(data, 7, 7, levels)
+    new = old[:2] + [0] * (integer_count(patched) - len(old)) + old[2:]
+    return _with_crc(patched[:FIXED_SIZE] + b"".join(map(leb128, new)) + data[end:-4])
+
+
 def _options_at(data: bytes) -> int:
     """Where a geometry image's options start: after the five integers of its header."""
     return read_integers(data, FIXED_SIZE, integer_count(data))[1]
@@ -523,7 +531,7 @@ def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, v
     [
         lambda data: _bits(data, 6, 28, 1),  # haar
         lambda data: _with_integers(data, FIXED_SIZE, {1: 8}),  # not square
-        lambda data: _bits(data, 7, 7, 5),  # 16 is not a multiple of 2**5
+        lambda data: _levels(data, 5),  # 16 is not a multiple of 2**5
     ],
 )
 def test_spherical_extension_of_another_image_is_a_format_error(geometry_file, patch):

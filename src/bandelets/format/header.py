@@ -294,8 +294,6 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
         header.threshold,
     )
-    segments = segment_lengths(header.levels, header.transform, header.segments, streams)
-    body += b"".join(_varint(n) for n in (header.height, header.width, *(n for g in segments for n in g)))
     if header.layout != Layout.XYZ and (header.kind, header.channels) != (Kind.NORMAL_MAP, 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.folded and not _can_fold(
@@ -316,6 +314,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"a {header.kind} of {header.channels} channels has no choice of extension, frames, "
                 f"normal weight or mesh vertices: {header}"
             )
+    segments = segment_lengths(header.levels, header.transform, header.segments, streams)
+    body += b"".join(_varint(n) for n in (header.height, header.width, *(n for g in segments for n in g)))
     if header.kind == Kind.GEOMETRY_IMAGE:
         body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
         body += _varint(header.mesh_vertices)
@@ -378,10 +378,6 @@ def _consistency(
         (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (
-            0 < spare - sum(lengths) <= most_filter_bytes(channels) if filtered else sum(lengths) == spare,
-            "stream lengths do not match the file size",
-        ),
-        (
             lifting == 0 or (wavelet == "cdf97" and kind != Kind.GEOMETRY_IMAGE),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
         ),
@@ -407,6 +403,11 @@ def _consistency(
             ),
             f"a lossless file of depth {depth} with lossy fields (levels, threshold, restoration, "
             "loop filter, lifting or geometry streams)",
+        ),
+        # Last: a field patched to another count of levels or transform reads other integers (format 19).
+        (
+            0 < spare - sum(lengths) <= most_filter_bytes(channels) if filtered else sum(lengths) == spare,
+            "stream lengths do not match the file size",
         ),
     ]
 
@@ -439,12 +440,9 @@ def unpack(
 def unpack_prefix(
     data: bytes, *, whole: bool = False, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLES
 ) -> tuple[Header, tuple[list[bytes], list[bytes], list[bytes]]]:
-    """Parse and validate a .bdl file or a prefix of one (``whole``: the file, as :func:`unpack`).
-
-    Returns the header and the segments of each stream (:mod:`bandelets.format.levels`) of the
-    groups ``data`` holds in whole. A prefix shorter than the file is not checked by the CRC (it is
-    at the end): its header is checked as a whole file's, and its loop filter is not read.
-    """
+    """The header of a .bdl file or a prefix of one (``whole``: the file) and the segments of each stream
+    (:mod:`bandelets.format.levels`) of the groups it holds in whole. A prefix has no CRC (it is at the
+    end) and no loop filter read; its header is checked as a whole file's."""
     if len(data) < 4 or data[:4] != MAGIC:
         raise FormatError("not a .bdl file (bad magic number)")
     if len(data) < HEADER_BYTES:
@@ -467,6 +465,8 @@ def unpack_prefix(
         body = data
     kind_code, codes, sizes, restoration, lifting_byte, threshold = fields[2:]
     green, sizes = sizes // 128, sizes % 128
+    if not 1 <= sizes % 8 <= MAX_LEVELS:  # before the integers, whose count it gives
+        raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {sizes % 8}")
     groups = group_count(sizes % 8, _TRANSFORM_OF.get(codes % 4))
     (height, width, *flat), start = _varints(body, _FIXED.size, 2 + 3 * groups)
     segments = tuple(tuple(flat[3 * g : 3 * g + 3]) for g in range(groups))
@@ -499,8 +499,6 @@ def unpack_prefix(
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
-    if not 1 <= levels <= MAX_LEVELS:
-        raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
     if kind == Kind.GEOMETRY_IMAGE:
         options = _geometry_options(*stored, vertices, wavelet, levels, height, width)
     else:
