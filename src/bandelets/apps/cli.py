@@ -293,6 +293,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--report", metavar="FILE", help="report .csv or .parquet (default DIR/report.csv)")
     p.add_argument("-f", "--force", action="store_true", help="redo files an earlier run left up to date")
+    deliver.add_batch_options(p)
     return parser
 
 
@@ -433,39 +434,21 @@ def _decode(args) -> None:
         raise _UsageError(f"--level is 0 or more, not {args.level}")
     _working(args.quiet)
     start = time.perf_counter()
-    from ..codec.decoder import decode
     from ..format.container import header_of
-    from ..io.files import write_array
 
     with _about(args.input):
         data = _read_bdl(args.input)
-        header = header_of(data)
-        if (gpu or args.green) and header.kind != Kind.NORMAL_MAP:
-            raise ValueError("a .ktx2 or .dds output and --green are for normal maps")
         progress = sys.stderr.isatty() and not args.quiet
         options = {"restore": not args.no_restore, "max_memory": args.max_memory, "progress": progress}
-        levels = deliver.decoded_levels(data, args.level, args.mips and not gpu, decode, **options)
-    levels = [deliver.flip_green(x, header.green, args.green) for x in levels]
-    decoded, added = levels[0], ""
-    if gpu:
-        from ..io.gpu import export
-
-        # BC5 for a map coded as two channels (x, y or equidistant coordinates), BC7 for three.
-        done = export(
-            args.output, decoded, args.gpu or ("bc5" if header.channels == 2 else None), mips=args.mips
+        decoded, added, count = deliver.write_outputs(
+            data, args.output, args.level, args.mips, args.gpu, args.green, **options
         )
-        added = f", {done.fmt.upper()} adds {done.error.mean:.3f} deg mean angle ({done.error.p99:.3f} p99)"
-    elif args.mips:
-        for k, image in enumerate(levels):
-            write_array(deliver.mip_name(args.output, k), image, header.kind, header.depth)
-    else:
-        write_array(args.output, decoded, header.kind, header.depth)
     if not args.quiet:
         from .summary import decode_summary
 
         elapsed = time.perf_counter() - start
-        line = decode_summary(args.input, args.output, decoded, header, elapsed) + added
-        print(line + (f", {len(levels)} levels" if args.mips and not gpu else ""), file=sys.stderr)
+        line = decode_summary(args.input, args.output, decoded, header_of(data), elapsed) + added
+        print(line + (f", {count} levels" if args.mips else ""), file=sys.stderr)
 
 
 @contextlib.contextmanager
@@ -725,6 +708,10 @@ def _batch(args) -> int:
         force=args.force,
         progress=sys.stderr.isatty(),
     )
+    if args.to:  # each file of the batch decoded beside it (bandelets.apps.deliver.ship)
+        for row in report[report.status != "failed"].itertuples():
+            with _about(row.output):
+                deliver.ship(row.output, args.to, args.mips, args.gpu, args.green)
     failed = report[report.status == "failed"]
     for row in failed.itertuples():
         named = row.error.startswith(f"{row.input}:")

@@ -18,7 +18,16 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # numpy is not imported before a command runs (bandelets.apps.cli)
     import numpy as np
 
-__all__ = ["add_decode_options", "add_green_option", "decoded_levels", "flip_green", "gpu_suffix"]
+__all__ = [
+    "add_batch_options",
+    "add_decode_options",
+    "add_green_option",
+    "decoded_levels",
+    "flip_green",
+    "gpu_suffix",
+    "ship",
+    "write_outputs",
+]
 
 GPU_SUFFIXES = (".ktx2", ".dds")
 
@@ -57,6 +66,59 @@ def add_decode_options(p: argparse.ArgumentParser) -> None:
         help="block format of a .ktx2 or .dds output (default bc5 for x, y maps, bc7 for three channels)",
     )
     add_green_option(p, decoding=True)
+
+
+def add_batch_options(p: argparse.ArgumentParser) -> None:
+    """``bandelets batch --to FORMAT [--mips] [--gpu] [--green]``: each .bdl file decoded beside it."""
+    p.add_argument(
+        "--to",
+        choices=("ktx2", "dds", "png", "tif", "exr", "npy"),
+        help="also decode every .bdl file written (or up to date) beside it, in this format (after the "
+        "batch, in this process); ktx2 and dds for normal maps",
+    )
+    p.add_argument("--mips", action="store_true", help="with --to: every level (see bandelets decode --mips)")
+    p.add_argument("--gpu", choices=("bc5", "bc7", "rgba8"), help="with --to ktx2 or dds: the block format")
+    add_green_option(p, decoding=True)
+
+
+def write_outputs(data: bytes, output: str, level: int, mips: bool, gpu_format: str | None, green: str | None,
+                  **options) -> tuple[np.ndarray, str, int]:  # fmt: skip
+    """Decode the .bdl file ``data`` into ``output`` (a GPU file, an image or ``--mips`` images), as
+    ``bandelets decode`` does (``options``: :func:`bandelets.decode`'s at level 0).
+
+    Returns the image written first, what the GPU format adds (text for the summary line, or "")
+    and the count of levels written."""
+    from ..codec.decoder import decode
+    from ..format.container import header_of
+    from ..format.fields import Kind
+    from ..io.files import write_array
+
+    header = header_of(data)
+    gpu = gpu_suffix(output)
+    if (gpu or green) and header.kind != Kind.NORMAL_MAP:
+        raise ValueError("a .ktx2 or .dds output and --green are for normal maps")
+    levels = decoded_levels(data, level, mips and not gpu, decode, **options)
+    levels = [flip_green(x, header.green, green) for x in levels]
+    if gpu:
+        from ..io.gpu import export
+
+        # BC5 for a map coded as two channels (x, y or equidistant coordinates), BC7 for three.
+        done = export(output, levels[0], gpu_format or ("bc5" if header.channels == 2 else None), mips=mips)
+        added = f", {done.fmt.upper()} adds {done.error.mean:.3f} deg mean angle ({done.error.p99:.3f} p99)"
+        return levels[0], added, len(done.sizes)
+    if mips:
+        for k, image in enumerate(levels):
+            write_array(mip_name(output, k), image, header.kind, header.depth)
+    else:
+        write_array(output, levels[0], header.kind, header.depth)
+    return levels[0], "", len(levels)
+
+
+def ship(bdl: str, to: str, mips: bool, gpu_format: str | None, green: str | None) -> str:
+    """Decode the .bdl file ``bdl`` beside it with the suffix ``to`` (``bandelets batch --to``); the path."""
+    output = str(Path(bdl).with_suffix(f".{to}"))
+    write_outputs(Path(bdl).read_bytes(), output, 0, mips, gpu_format, green)
+    return output
 
 
 def gpu_suffix(path: str) -> bool:
