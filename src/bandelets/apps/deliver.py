@@ -3,10 +3,12 @@
 and the green convention (``--green``).
 
 Naming of ``--mips`` for image outputs: ``OUT.png`` becomes ``OUT-0.png`` (the full decode, or the
-``--level`` asked), ``OUT-1.png``, ... each half the size of the one before (sides rounded up), down
-to 1 x 1; the levels the file holds are decoded from it (:mod:`bandelets.codec.levels`), the coarser
-ones are 2 x 2 box averages, renormalised. A GPU file holds the chain itself (its mips are those of
-the decoded image, renormalised: :func:`bandelets.io.gpu.mip_chain`).
+``--level`` asked), ``OUT-1.png``, ... each half the size of the one before, down to 1 x 1. A normal
+map's mips are the box averages of its decoded unit vectors, renormalised
+(:func:`bandelets.io.gpu.mip_chain`: sides halved and rounded down), as a GPU file holds them: the
+whole file is read for level 0 anyway, and they are closer to the mips of the original than the
+images a prefix decodes to (``benchmarks/mip_levels.py``). Other images: the levels the file holds
+decoded from it (:mod:`bandelets.codec.levels`, sides rounded up), then 2 x 2 box averages.
 """
 
 from __future__ import annotations
@@ -97,7 +99,12 @@ def write_outputs(data: bytes, output: str, level: int, mips: bool, gpu_format: 
     gpu = gpu_suffix(output)
     if (gpu or green) and header.kind != Kind.NORMAL_MAP:
         raise ValueError("a .ktx2 or .dds output and --green are for normal maps")
-    levels = decoded_levels(data, level, mips and not gpu, decode, **options)
+    normal = header.kind == Kind.NORMAL_MAP
+    levels = decoded_levels(data, level, mips and not gpu and not normal, decode, **options)
+    if mips and not gpu and normal:
+        from ..io.gpu import mip_chain
+
+        levels = mip_chain(levels[0])
     levels = [flip_green(x, header.green, green) for x in levels]
     if gpu:
         from ..io.gpu import export
