@@ -24,9 +24,9 @@ Layout (little endian)::
                   plus 128 if the image is folded (format version 14, see below)
     10      4     threshold T (float32, MIN_THRESHOLD to MAX_THRESHOLD)
     14      ...   height, width, then the byte lengths of the segments of the three streams
-                  (quadtree splits, directions, coefficients) of each group of levels (format
-                  version 19: ``3 (levels + 1)`` lengths, 3 for a lossless file; group by group,
-                  :mod:`bandelets.format.levels`): unsigned LEB128 integers (7 bits a byte, low
+                  (quadtree splits, directions, coefficients) of each group of levels, group by
+                  group (format version 19, :mod:`bandelets.format.levels`; group 0 its
+                  coefficients' alone): ``3 levels + 1`` unsigned LEB128 integers (7 bits a byte, low
                   bits first, the top bit set on every byte but the last; at most 5 bytes, no
                   needless trailing byte, below 2**32)
     ...     ...   geometry-image options (kind 2 only, see below)
@@ -100,7 +100,7 @@ from .fields import (
     Wavelet,
 )
 from .filter import LoopFilter, most_filter_bytes, pack_filter, unpack_filter
-from .levels import group_count, interleave, segment_lengths, split
+from .levels import group_count, interleave, segment_lengths, split, stored_lengths
 
 __all__ = ["HEADER_BYTES", "Header", "implied_options", "pack", "streams_offset", "unpack"]
 
@@ -247,7 +247,7 @@ def streams_offset(data: bytes) -> int:
     if len(data) < _FIXED.size:
         raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
     groups = group_count(data[7] % 8, _TRANSFORM_OF.get(data[6] % 4))
-    start = _varints(data, _FIXED.size, 2 + 3 * groups)[1]
+    start = _varints(data, _FIXED.size, 3 * groups)[1]
     if data[5] == KIND_CODES[Kind.GEOMETRY_IMAGE]:
         start = _varints(data, start + _GEOMETRY.size, 1)[1]
     return start
@@ -315,7 +315,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"normal weight or mesh vertices: {header}"
             )
     segments = segment_lengths(header.levels, header.transform, header.segments, streams)
-    body += b"".join(_varint(n) for n in (header.height, header.width, *(n for g in segments for n in g)))
+    body += b"".join(_varint(n) for n in (header.height, header.width, *stored_lengths(segments)))
     if header.kind == Kind.GEOMETRY_IMAGE:
         body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
         body += _varint(header.mesh_vertices)
@@ -468,8 +468,8 @@ def unpack_prefix(
     if not 1 <= sizes % 8 <= MAX_LEVELS:  # before the integers, whose count it gives
         raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {sizes % 8}")
     groups = group_count(sizes % 8, _TRANSFORM_OF.get(codes % 4))
-    (height, width, *flat), start = _varints(body, _FIXED.size, 2 + 3 * groups)
-    segments = tuple(tuple(flat[3 * g : 3 * g + 3]) for g in range(groups))
+    (height, width, *flat), start = _varints(body, _FIXED.size, 3 * groups)
+    segments = ((0, 0, flat[0]),) + tuple(tuple(flat[3 * g - 2 : 3 * g + 1]) for g in range(1, groups))
     lengths = [sum(g[s] for g in segments) for s in range(3)]
     transform_code, wavelet_code, along_code, layout_code = (
         codes % 4,

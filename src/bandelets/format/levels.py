@@ -6,8 +6,9 @@ coarse approximation and after each wavelet level's three subbands (:func:`bande
 code_image`; the arithmetic state restarts, the adaptive contexts go on), and the file stores the
 segments group by group: the approximation's (group 0), then those of the coarsest detail level
 (group 1), ..., the finest (group ``levels``), each group its splits, directions and coefficients
-segments in that order. The header holds the byte length of every segment (LEB128, group by group).
-A lossless file has one group (:mod:`bandelets.coding.lossless` codes no levels).
+segments in that order. The header holds the byte length of every segment (LEB128, group by group)
+but the two of group 0 that are always empty (the approximation has no quadtree nor directions). A
+lossless file has one group (:mod:`bandelets.coding.lossless` codes no levels).
 
 The image at level ``k`` (``1 / 2**k`` of the size) needs groups ``0`` to ``levels - k``: a file cut
 after them decodes there (:func:`bandelets.codec.levels.decode_level`).
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 from .fields import LOSSLESS
 
-__all__ = ["group_count", "groups_for", "interleave", "parts", "segment_lengths", "split"]
+__all__ = ["group_count", "groups_for", "interleave", "parts", "segment_lengths", "split", "stored_lengths"]
 
 
 def group_count(levels: int, transform: str | None) -> int:
@@ -76,3 +77,10 @@ def parts(streams: tuple[bytes, bytes, bytes], segments: tuple) -> tuple[list[by
             out[s].append(stream[start : start + group[s]])
             start += group[s]
     return out
+
+
+def stored_lengths(segments: tuple) -> list[int]:
+    """The segment lengths a header stores: all but group 0's splits and directions (empty)."""
+    if segments[0][:2] != (0, 0):
+        raise ValueError(f"segments {segments}: the approximation's group has splits or directions")
+    return [segments[0][2]] + [n for group in segments[1:] for n in group]
