@@ -41,9 +41,9 @@ def angle(a: np.ndarray, b: np.ndarray) -> float:
 
 def load(name: str, size: int) -> np.ndarray:
     if name == "bumps":
-        return unit3(bump_normal_map(size))
+        return unit3(bump_normal_map(size or 512))
     if name == "crease":
-        return unit3(crease_normal_map(size))
+        return unit3(crease_normal_map(size or 512))
     rgb = iio.imread(DATA / name)[..., :3].astype(np.float64)
     rgb = rgb / (65535 if rgb.max() > 255 else 255) * 2 - 1
     return unit3(rgb if not size else rgb[:size, :size])
