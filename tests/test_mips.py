@@ -159,3 +159,16 @@ def test_cli_mips_of_an_image_output(tmp_path: Path) -> None:
     shapes = [np.load(tmp_path / f"o-{k}.npy").shape[:2] for k in range(5)]
     assert shapes == [(16, 16), (8, 8), (4, 4), (2, 2), (1, 1)]
     assert not (tmp_path / "o-5.npy").exists()
+
+
+def test_tiled_file_decodes_each_tile_at_the_level() -> None:
+    """Each tile at level k from its first bytes, side by side: sides of ceil(tile / 2^k)."""
+    source = bump_normal_map(96)
+    data = encode(source, bpp=1.0, kind="normal-map", tile=32)
+    needs = level_bytes(data)
+    assert needs[0] == len(data) and needs[1] < len(data)
+    for k in range(1, 5):
+        image = decode(data, level=k)
+        assert image.shape == (-(-96 >> k), -(-96 >> k), 3)
+        assert np.allclose(np.linalg.norm(image, axis=-1), 1.0)
+    assert mean_angle(decode(data, level=1), mip_chain(source)[1]) < 2.0

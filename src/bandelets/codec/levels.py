@@ -30,7 +30,7 @@ from ..coding.image import code_image, new_coders
 from ..format.container import _HEAD, is_tiled, read
 from ..format.fields import LOSSLESS, FormatError, Kind, Layout, padded_shape
 from ..format.header import Header, streams_offset, unpack_prefix
-from ..format.levels import group_count, groups_for, parts
+from ..format.levels import group_count, groups_for
 from ..format.quantizer import dequantize
 from ..transform import frames, riesz
 from ..transform.bandeletize import debandeletize
@@ -53,6 +53,14 @@ def decode_level(data: bytes, level: int, **limits) -> np.ndarray:
         raise ValueError(f"level must be an integer >= 0, not {level!r}")
     if is_tiled(data):
         return _tiles(data, level, **limits)
+    return _prefix_image(data, level, **limits)
+
+
+def _prefix_image(data: bytes, level: int, **limits) -> np.ndarray:
+    """The image at ``level`` of a plain file, from the bytes it needs alone (no CRC over the rest)."""
+    needs = level_bytes(data)
+    if level and needs[min(level, len(needs) - 1)] <= len(data):
+        data = data[: needs[min(level, len(needs) - 1)]]
     header, segments = unpack_prefix(data, **limits)
     return level_image(header, segments, level, len(data), data)
 
@@ -144,10 +152,12 @@ def level_bytes(data: bytes) -> list[int]:
     file) to the file's wavelet levels (the coarse approximation): a prefix of a plain file; of a
     tiled file, the sum over its tiles of each tile's prefix. A lossless file: its size alone."""
     if is_tiled(data):
-        per = [level_bytes(tile) for tile in _tile_bytes(data)]
-        return [sum(p[min(k, len(p) - 1)] for p in per) for k in range(max(len(p) for p in per))]
-    header, _ = unpack_prefix(data)  # a prefix too (its level 0: its own size)
+        tiles = _tile_bytes(data)
+        per = [level_bytes(tile) for tile in tiles]
+        table = len(data) - sum(map(len, tiles))  # the container's head and tile lengths
+        return [table + sum(p[min(k, len(p) - 1)] for p in per) for k in range(max(len(p) for p in per))]
     start = streams_offset(data)
+    header, _ = unpack_prefix(data[:start])  # the header alone (of a prefix too; its level 0: its size)
     sizes = [sum(g) for g in header.segments]
     out = [len(data)]
     if group_count(header.levels, header.transform) > 1:
@@ -167,11 +177,15 @@ def _tile_bytes(data: bytes) -> list[bytes]:
 
 def _tiles(data: bytes, level: int, **limits) -> np.ndarray:
     """The image at ``level`` of a tiled file: every tile's, side by side."""
-    grid, tiles = read(data, **limits)
+    grid, _ = read(data, **limits)
     images = []
-    for i in range(len(grid.boxes)):
-        header, streams = tiles[i]()
-        images.append(level_image(header, parts(streams, header.segments), level))
+    for (rows, cols), tile in zip(grid.boxes, _tile_bytes(data), strict=True):
+        image = _prefix_image(tile, level, **limits)  # each tile's first bytes alone
+        if image.shape[:2] != level_shape(rows.stop - rows.start, cols.stop - cols.start, level):
+            raise FormatError(
+                f"corrupt .bdl file: a tile of {image.shape[1]} x {image.shape[0]} at level {level}"
+            )
+        images.append(image)
     rows = [box[0] for box in grid.boxes]
     n_cols = sum(1 for r in rows if r == rows[0])
     grid_rows = [images[i : i + n_cols] for i in range(0, len(images), n_cols)]
