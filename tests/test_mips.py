@@ -171,4 +171,4 @@ def test_tiled_file_decodes_each_tile_at_the_level() -> None:
         image = decode(data, level=k)
         assert image.shape == (-(-96 >> k), -(-96 >> k), 3)
         assert np.allclose(np.linalg.norm(image, axis=-1), 1.0)
-    assert mean_angle(decode(data, level=1), mip_chain(source)[1]) < 2.0
+    assert mean_angle(decode(data, level=1), mip_chain(source)[1]) < 3.0

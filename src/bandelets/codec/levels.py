@@ -29,7 +29,7 @@ from ..coding import rangecoder
 from ..coding.image import code_image, new_coders
 from ..format.container import _HEAD, is_tiled, read
 from ..format.fields import LOSSLESS, FormatError, Kind, Layout, padded_shape
-from ..format.header import Header, streams_offset, unpack_prefix
+from ..format.header import HEADER_BYTES, Header, streams_offset, unpack_prefix
 from ..format.levels import group_count, groups_for
 from ..format.quantizer import dequantize
 from ..transform import frames, riesz
@@ -157,7 +157,7 @@ def level_bytes(data: bytes) -> list[int]:
         table = len(data) - sum(map(len, tiles))  # the container's head and tile lengths
         return [table + sum(p[min(k, len(p) - 1)] for p in per) for k in range(max(len(p) for p in per))]
     start = streams_offset(data)
-    header, _ = unpack_prefix(data[:start])  # the header alone (of a prefix too; its level 0: its size)
+    header, _ = unpack_prefix(data[: max(start, HEADER_BYTES)])  # the header (of a prefix too)
     sizes = [sum(g) for g in header.segments]
     out = [len(data)]
     if group_count(header.levels, header.transform) > 1:

@@ -263,7 +263,7 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     ...     threshold=0.5,
     ... )
     >>> data = pack(header, (b"", b"", b"ab"))
-    >>> len(data) == HEADER_BYTES + 2
+    >>> len(data) == HEADER_BYTES + 1 + 2  # six integers: the sides, 1 + 3 segment lengths
     True
     >>> unpack(data) == (header, (b"", b"", b"ab"))
     True
