@@ -172,3 +172,17 @@ def test_tiled_file_decodes_each_tile_at_the_level() -> None:
         assert image.shape == (-(-96 >> k), -(-96 >> k), 3)
         assert np.allclose(np.linalg.norm(image, axis=-1), 1.0)
     assert mean_angle(decode(data, level=1), mip_chain(source)[1]) < 3.0
+
+
+def test_every_cut_decodes_or_is_refused_in_one_line() -> None:
+    """A file cut anywhere decodes at level 1 (when the cut holds it) or raises FormatError."""
+    data = encode(bump_normal_map(32), bpp=2.0, kind="normal-map")
+    needs = level_bytes(data)
+    whole = decode(data, level=1)
+    for cut in range(0, len(data), 3):
+        try:
+            image = decode(data[:cut], level=1)
+        except FormatError:
+            assert cut < needs[1]
+        else:
+            assert cut >= needs[1] and np.array_equal(image, whole)

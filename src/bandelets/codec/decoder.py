@@ -121,7 +121,7 @@ def decode(
     if level:
         if region is not None:
             raise ValueError("decode at a level takes no region: crop the image it returns")
-        return decode_level(data, level, **limits)
+        return decode_level(data, level, max_memory, **limits)
     if is_tiled(data):
         return _decode_tiles(
             data,

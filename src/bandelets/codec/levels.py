@@ -22,15 +22,17 @@ bytes (:func:`level_bytes` sums them).
 from __future__ import annotations
 
 import struct
+from dataclasses import replace
 
 import numpy as np
 
 from ..coding import rangecoder
 from ..coding.image import code_image, new_coders
 from ..format.container import _HEAD, is_tiled, read
-from ..format.fields import LOSSLESS, FormatError, Kind, Layout, padded_shape
+from ..format.fields import LOSSLESS, MAX_MEMORY, FormatError, Kind, Layout, padded_shape
 from ..format.header import HEADER_BYTES, Header, streams_offset, unpack_prefix
 from ..format.levels import group_count, groups_for
+from ..format.limits import check_memory
 from ..format.quantizer import dequantize
 from ..transform import frames, riesz
 from ..transform.bandeletize import debandeletize
@@ -46,22 +48,24 @@ def level_shape(height: int, width: int, level: int) -> tuple[int, int]:
     return -(-height >> level), -(-width >> level)
 
 
-def decode_level(data: bytes, level: int, **limits) -> np.ndarray:
-    """The image of the file (or a prefix of it) ``data`` at ``level`` (see the module; ``limits``:
-    ``max_side`` and ``max_samples``), shaped as :func:`bandelets.decode` returns it."""
+def decode_level(data: bytes, level: int, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
+    """The image of the file (or a prefix of it) ``data`` at ``level`` (see the module; ``max_memory``
+    and ``limits``, ``max_side`` and ``max_samples``: as :func:`bandelets.decode`, for each tile of a
+    tiled file), shaped as :func:`bandelets.decode` returns it."""
     if not isinstance(level, (int, np.integer)) or level < 0:
         raise ValueError(f"level must be an integer >= 0, not {level!r}")
     if is_tiled(data):
-        return _tiles(data, level, **limits)
-    return _prefix_image(data, level, **limits)
+        return _tiles(data, level, max_memory, **limits)
+    return _prefix_image(data, level, max_memory, **limits)
 
 
-def _prefix_image(data: bytes, level: int, **limits) -> np.ndarray:
+def _prefix_image(data: bytes, level: int, max_memory: int, **limits) -> np.ndarray:
     """The image at ``level`` of a plain file, from the bytes it needs alone (no CRC over the rest)."""
     needs = level_bytes(data)
     if level and needs[min(level, len(needs) - 1)] <= len(data):
         data = data[: needs[min(level, len(needs) - 1)]]
     header, segments = unpack_prefix(data, **limits)
+    check_memory(replace(header, restoration=0, loop_filter=None), max_memory)  # full-size bins at most
     return level_image(header, segments, level, len(data), data)
 
 
@@ -175,12 +179,12 @@ def _tile_bytes(data: bytes) -> list[bytes]:
     return [data[a:b] for a, b in zip(starts[:-1], starts[1:], strict=True)]
 
 
-def _tiles(data: bytes, level: int, **limits) -> np.ndarray:
+def _tiles(data: bytes, level: int, max_memory: int, **limits) -> np.ndarray:
     """The image at ``level`` of a tiled file: every tile's, side by side."""
     grid, _ = read(data, **limits)
     images = []
     for (rows, cols), tile in zip(grid.boxes, _tile_bytes(data), strict=True):
-        image = _prefix_image(tile, level, **limits)  # each tile's first bytes alone
+        image = _prefix_image(tile, level, max_memory, **limits)  # each tile's first bytes alone
         if image.shape[:2] != level_shape(rows.stop - rows.start, cols.stop - cols.start, level):
             raise FormatError(
                 f"corrupt .bdl file: a tile of {image.shape[1]} x {image.shape[0]} at level {level}"
