@@ -127,7 +127,7 @@ def code_image(
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             coefficients.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
         if index % 3 == 2:
-            if level == header.lifting:
+            if level == header.lifting and (decoding or lifting is not None):  # else: a price only
                 fields = code_lifting(dirs, header, None if decoding else lifting)
                 if decoding and lifting is not None:
                     lifting.extend(fields)
@@ -149,8 +149,8 @@ def _cut(coders: tuple, segments: list[list[bytes]]) -> None:
 
 def code_lifting(coder: rangecoder.Coder, header: Header, lifting: list | None = None) -> list | None:
     """Code (``lifting`` given) or decode the directions of the levels lifted along directions
-    (:func:`bandelets.transform.directional.code_fields`), which end the directions stream, after
-    :func:`code_image`; None for a file without them."""
+    (:func:`bandelets.transform.directional.code_fields`), which end the directions of the coarsest
+    lifted level (:func:`code_image` calls it); None for a file without them."""
     if not header.lifting:
         return None
     shape = padded_shape((header.height, header.width), header.levels)
@@ -160,7 +160,7 @@ def code_lifting(coder: rangecoder.Coder, header: Header, lifting: list | None =
 def new_coders(data: tuple | None = None) -> tuple[rangecoder.Coder, ...]:
     """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``,
     each stream its bytes or the list of its segments, level by level
-    (:func:`bandelets.format.levels.segments`).
+    (:func:`bandelets.format.levels.parts`).
 
     An encoder's segments are its ``segments`` after :func:`code_image`."""
     sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directions.N_CONTEXTS, approximation.N_CONTEXTS)

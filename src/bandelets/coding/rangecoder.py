@@ -103,6 +103,9 @@ class Coder:
         self.probs = np.full(n_contexts, _PROB_ONE // 2, np.int64)
         self.counts = np.zeros(n_contexts, np.int64)
         self.state = np.zeros(6, np.int64)
+        #: The segments to decode after this one; those the encoder has cut (format version 19, :meth:`cut`).
+        self.pending: list[bytes] = []
+        self.segments: list[bytes] = []
         if self.decoding:
             self.buf = np.frombuffer(bytes(data), np.uint8).copy()
             _decoder_start(self.state, self.buf)
