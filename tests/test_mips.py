@@ -191,3 +191,19 @@ def test_every_cut_decodes_or_is_refused_in_one_line() -> None:
             assert cut < needs[1]
         else:
             assert cut >= needs[1] and np.array_equal(image, whole)
+
+
+def test_cli_decodes_a_cut_file_at_its_level(tmp_path: Path, capsys) -> None:
+    write_png(tmp_path / "in.png", bump_normal_map(64))
+    assert (
+        main(["encode", str(tmp_path / "in.png"), str(tmp_path / "m.bdl"), "--kind", "normal-map", "-q"]) == 0
+    )
+    data = (tmp_path / "m.bdl").read_bytes()
+    needs = level_bytes(data)
+    (tmp_path / "cut.bdl").write_bytes(data[: needs[2]])
+    assert main(["decode", str(tmp_path / "cut.bdl"), str(tmp_path / "two.npy"), "--level", "2", "-q"]) == 0
+    assert np.array_equal(np.load(tmp_path / "two.npy"), decode(data, level=2).astype(np.float32))
+    capsys.readouterr()
+    assert main(["decode", str(tmp_path / "cut.bdl"), str(tmp_path / "one.npy"), "--level", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"needs the first {needs[1]} bytes" in err

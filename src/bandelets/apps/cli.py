@@ -434,7 +434,7 @@ def _decode(args) -> None:
         raise _UsageError(f"--level is 0 or more, not {args.level}")
     _working(args.quiet)
     start = time.perf_counter()
-    from ..format.container import header_of
+    from ..codec.levels import prefix_header
 
     with _about(args.input):
         data = _read_bdl(args.input)
@@ -447,7 +447,7 @@ def _decode(args) -> None:
         from .summary import decode_summary
 
         elapsed = time.perf_counter() - start
-        line = decode_summary(args.input, args.output, decoded, header_of(data), elapsed) + added
+        line = decode_summary(args.input, args.output, decoded, prefix_header(data), elapsed) + added
         print(line + (f", {count} levels" if args.mips else ""), file=sys.stderr)
 
 

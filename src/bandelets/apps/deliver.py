@@ -91,11 +91,12 @@ def write_outputs(data: bytes, output: str, level: int, mips: bool, gpu_format: 
     Returns the image written first, what the GPU format adds (text for the summary line, or "")
     and the count of levels written."""
     from ..codec.decoder import decode
+    from ..codec.levels import prefix_header
     from ..format.container import header_of
     from ..format.fields import Kind
     from ..io.files import write_array
 
-    header = header_of(data)
+    header = prefix_header(data) if level else header_of(data)
     gpu = gpu_suffix(output)
     if (gpu or green) and header.kind != Kind.NORMAL_MAP:
         raise ValueError("a .ktx2 or .dds output and --green are for normal maps")

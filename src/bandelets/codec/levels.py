@@ -28,7 +28,7 @@ import numpy as np
 
 from ..coding import rangecoder
 from ..coding.image import code_image, new_coders
-from ..format.container import _HEAD, is_tiled, read
+from ..format.container import _HEAD, header_of, is_tiled, read
 from ..format.fields import LOSSLESS, MAX_MEMORY, FormatError, Kind, Layout, padded_shape
 from ..format.header import HEADER_BYTES, Header, streams_offset, unpack_prefix
 from ..format.levels import group_count, groups_for
@@ -40,7 +40,7 @@ from ..transform.bandelets import apply_trees
 from ..transform.coarse import box_filtered, coarse
 from ..transform.normals import unit_normals
 
-__all__ = ["decode_level", "level_bytes", "level_shape"]
+__all__ = ["decode_level", "level_bytes", "level_shape", "prefix_header"]
 
 
 def level_shape(height: int, width: int, level: int) -> tuple[int, int]:
@@ -149,6 +149,14 @@ def _halved(image: np.ndarray, header: Header, times: int) -> np.ndarray:
         x = x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
         x = x[..., : image.shape[-1]]
     return x if image.ndim == 3 else x[..., 0]
+
+
+def prefix_header(data: bytes) -> Header:
+    """The header of a .bdl file or of a prefix of one (:func:`bandelets.format.container.header_of` of a
+    tiled file, which a prefix does not decode)."""
+    if is_tiled(data):
+        return header_of(data)
+    return unpack_prefix(data[: max(streams_offset(data), HEADER_BYTES)])[0]
 
 
 def level_bytes(data: bytes) -> list[int]:
