@@ -207,3 +207,24 @@ def test_cli_decodes_a_cut_file_at_its_level(tmp_path: Path, capsys) -> None:
     assert main(["decode", str(tmp_path / "cut.bdl"), str(tmp_path / "one.npy"), "--level", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"needs the first {needs[1]} bytes" in err
+
+
+def test_batch_to_ktx2_ships_every_file_beside_its_bdl(tmp_path: Path, monkeypatch) -> None:
+    """``batch --to ktx2 --mips``: each .bdl file of the report (not the failed ones) decoded beside it
+    (the batch itself replaced by its report, so that no cluster starts)."""
+    import pandas as pd
+
+    from bandelets.apps import batch
+
+    bdl = tmp_path / "m.bdl"
+    bdl.write_bytes(encode(bump_normal_map(32), bpp=1.0, kind="normal-map"))
+    rows = [
+        {"input": "m.png", "output": str(bdl), "status": "ok", "error": ""},
+        {"input": "bad.png", "output": str(tmp_path / "bad.bdl"), "status": "failed", "error": "not a PNG"},
+    ]
+    monkeypatch.setattr(batch, "batch", lambda *args, **kwargs: pd.DataFrame(rows))
+    argv = ["batch", "m.png", "--out", str(tmp_path), "--kind", "normal-map", "--to", "ktx2", "--mips"]
+    assert main(argv) == 1  # the failed row
+    data = (tmp_path / "m.ktx2").read_bytes()
+    assert data[:12] == b"\xabKTX 20\xbb\r\n\x1a\n" and struct.unpack_from("<I", data, 40)[0] == 6
+    assert not (tmp_path / "bad.ktx2").exists()
