@@ -23,3 +23,10 @@ def read_integers(data: bytes, start: int, count: int) -> tuple[list[int], int]:
         values.append(value | data[start] << shift)
         start += 1
     return values, start
+
+
+def integer_count(data: bytes) -> int:
+    """The LEB128 integers of a .bdl header (format version 19): height, width and three segment
+    lengths per group of levels but group 0's one (one group for a lossless file, transform code 2)."""
+    levels, transform = data[7] % 8, data[6] % 4
+    return 3 * (1 if transform == 2 else levels + 1)

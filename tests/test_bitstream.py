@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from headerints import leb128, read_integers
+from headerints import integer_count, leb128, read_integers
 
 import bandelets
 from bandelets.codec.options import EncodeOptions
@@ -31,6 +31,7 @@ from bandelets.format.fields import (
     Wavelet,
 )
 from bandelets.format.header import HEADER_BYTES, Header, implied_options, pack, streams_offset, unpack
+from bandelets.format.levels import group_count
 
 FIXED_SIZE = 14  # fixed fields, before the five LEB128 integers (sides, stream lengths)
 GEOMETRY_SIZE = 5  # options of a geometry image, before its LEB128 vertex count
@@ -70,10 +71,10 @@ def _bits(data: bytes, offset: int, mask: int, value: int) -> bytes:
     return _patched(data, offset, "<B", data[offset] & ~mask | value << low)
 
 
-def _with_integers(data: bytes, start: int, values: dict[int, int], count: int = 5) -> bytes:
+def _with_integers(data: bytes, start: int, values: dict[int, int], count: int | None = None) -> bytes:
     """``data`` with the ``count`` LEB128 integers from ``start`` rewritten (``values``: index ->
     value; 0 height, 1 width, 2 to 4 the stream lengths) and a valid CRC again."""
-    old, end = read_integers(data, start, count)
+    old, end = read_integers(data, start, count or integer_count(data))
     new = [values.get(i, v) for i, v in enumerate(old)]
     return _with_crc(data[:start] + b"".join(map(leb128, new)) + data[end:-4])
 
@@ -205,11 +206,14 @@ def test_header_round_trip(header):
     assert data[:4] == MAGIC
     assert data[4] == FORMAT_VERSION
     extra = GEOMETRY_SIZE + 1 if header.kind == "geometry-image" else 0  # 1: the vertices, 0
-    integers = len(b"".join(map(leb128, (header.height, header.width, *map(len, streams)))))
+    # Format version 19: the segments of every group of levels, all in the last one here.
+    segments = ((0, 0, 0),) * (group_count(header.levels, header.transform) - 1) + (tuple(map(len, streams)),)
+    lengths = [segments[0][2]] + [n for group in segments[1:] for n in group]  # group 0: coefficients
+    integers = len(b"".join(map(leb128, (header.height, header.width, *lengths))))
     assert len(data) == FIXED_SIZE + integers + extra + sum(map(len, streams)) + 4
     assert streams_offset(data) == FIXED_SIZE + integers + extra
     got, got_streams = unpack(data)
-    assert got == header
+    assert got == replace(header, segments=segments)
     assert got_streams == streams
 
 
@@ -319,7 +323,7 @@ def test_truncated_header(small_file):
         (7, 7, 0, "levels"),
         (7, 7, 7, "levels"),
         (7, 96, 3, "depth"),
-        (7, 128, 1, "depth"),
+        (7, 128, 1, "green convention"),  # format 19: the top bit is a normal map's green
         (8, 127, 101, "restoration iterations"),
         (9, 31, 4, "directional levels"),
         (9, 128, 1, "folded"),  # a gray image
@@ -346,7 +350,7 @@ def test_thresholds_out_of_range_are_format_errors(small_file, threshold):
         ({1: 100_000}, "exceeds"),  # width
         ({0: 0}, "exceeds"),
         ({2: 10**6}, "stream lengths"),
-        ({4: 0}, "stream lengths"),
+        ({2: 0}, "stream lengths"),  # the approximation's coefficients (format 19)
         ({0: 2**32}, "exceeds 2\\*\\*32"),
     ],
 )
@@ -473,9 +477,17 @@ def geometry_file():
     return bandelets.encode(p, threshold=0.01, kind="geometry-image", frames=True, extension="spherical")
 
 
+def _levels(data: bytes, levels: int) -> bytes:
+    """``data`` at another count of wavelet levels, more groups of empty segments in front (format 19)."""
+    old, end = read_integers(data, FIXED_SIZE, integer_count(data))
+    patched = _bits(data, 7, 7, levels)
+    new = old[:2] + [0] * (integer_count(patched) - len(old)) + old[2:]
+    return _with_crc(patched[:FIXED_SIZE] + b"".join(map(leb128, new)) + data[end:-4])
+
+
 def _options_at(data: bytes) -> int:
     """Where a geometry image's options start: after the five integers of its header."""
-    return read_integers(data, FIXED_SIZE, 5)[1]
+    return read_integers(data, FIXED_SIZE, integer_count(data))[1]
 
 
 def test_geometry_options_are_read_back(geometry_file):
@@ -519,7 +531,7 @@ def test_absurd_geometry_options_are_format_errors(geometry_file, offset, fmt, v
     [
         lambda data: _bits(data, 6, 28, 1),  # haar
         lambda data: _with_integers(data, FIXED_SIZE, {1: 8}),  # not square
-        lambda data: _bits(data, 7, 7, 5),  # 16 is not a multiple of 2**5
+        lambda data: _levels(data, 5),  # 16 is not a multiple of 2**5
     ],
 )
 def test_spherical_extension_of_another_image_is_a_format_error(geometry_file, patch):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from headerints import leb128, read_integers
+from headerints import integer_count, leb128, read_integers
 
 import bandelets
 from bandelets.format import container
@@ -65,8 +65,9 @@ def _repaired(body: bytearray) -> bytes:
         start = streams_offset(body)
     except FormatError:  # a header cut short or malformed: only the CRC
         return _crc(body)
-    (_, _, a, b, c), end = read_integers(body, 14, 5)  # after the 14 bytes of fixed fields
-    rest = len(body) - start - a - b  # the same whatever bytes its LEB128 takes: start moves too
+    (_, _, *lengths), end = read_integers(body, 14, integer_count(body))  # after the 14 fixed bytes
+    c = lengths[-1]  # the last segment's length is fitted
+    rest = len(body) - start - sum(lengths[:-1])  # the same whatever bytes its LEB128 takes: start moves
     filtered = body[8] >= 128
     if rest >= 0 and not (filtered and 0 < rest - c <= 256):
         body = body[: end - len(leb128(c))] + leb128(rest) + body[end:]

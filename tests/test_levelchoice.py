@@ -128,8 +128,9 @@ def test_levels_to_try_gives_the_runner_up_only_when_close():
 
 def test_a_rate_target_keeps_the_runner_up_where_it_decodes_better(shared_data, monkeypatch):
     # Fandisk rendered from the top at 0.35 bpp: the estimate prefers 2 levels (0.801 of all the
-    # levels' cost) to 3 (0.849), which decode 0.33 dB better (47.42 against 47.09 dB; 1.1 dB in
-    # format version 17, whose approximation cost more with 2 levels).
+    # levels' cost) to 3 (0.849), which decode 0.13 dB better (47.42 against 47.30 dB in format
+    # version 19, whose segment lengths and flushes cost a few bytes a level; 0.33 dB in version 18, 1.1
+    # dB in version 17, whose approximation cost more with 2 levels).
     from bandelets.surfaces.codec import load_mesh
     from bandelets.surfaces.render import render_normals, to_samples, turned_up
 
@@ -145,7 +146,7 @@ def test_a_rate_target_keeps_the_runner_up_where_it_decodes_better(shared_data, 
         files[within] = unpack(data)[0].levels, metrics.psnr(reference, bandelets.decode(data), "normal-map")
     assert files[1.0][0] == MIN_LEVELS
     assert files[levelchoice.TRY_WITHIN][0] == MIN_LEVELS + 1
-    assert files[levelchoice.TRY_WITHIN][1] > files[1.0][1] + 0.2
+    assert files[levelchoice.TRY_WITHIN][1] > files[1.0][1] + 0.1
 
 
 def test_three_channels_get_no_runner_up():

@@ -58,7 +58,8 @@ def test_a_filter_is_read_back_bit_exactly(radius, cross, square, channels):
         )
         header = _header(channels, f)
         data = pack(header, (b"", b"", b"ab"))
-        assert unpack(data) == (header, (b"", b"", b"ab"))
+        got, streams = unpack(data)
+        assert (replace(got, segments=()), streams) == (header, (b"", b"", b"ab"))  # segments: format 19
 
 
 def test_filter_shapes_count_their_taps():

@@ -11,6 +11,7 @@ from bandelets.coding.coefficients import N_HINTS, SQUARE_START
 from bandelets.coding.order import subband_box, subband_plan
 from bandelets.coding.squarecontexts import square_hints
 from bandelets.format.header import unpack
+from bandelets.format.levels import parts
 from bandelets.format.quantizer import RECONSTRUCTION
 from bandelets.samples import crease_normal_map
 from bandelets.transform.bandeletize import transform_rows
@@ -82,7 +83,7 @@ def test_hints_pay_on_the_crease_map(monkeypatch):
     bins coded with every hint set to 0 cost more."""
     data = bandelets.encode(crease_normal_map(128), threshold=0.03, kind="normal-map")
     header, streams = unpack(data)
-    trees, bins, spent = coding.code_image(coding.new_coders(streams), header)
+    trees, bins, spent = coding.code_image(coding.new_coders(parts(streams, header.segments)), header)
     assert any(np.any(t.leaves()[3] >= 0) for t in trees), "no bandelet square to test"
 
     def without_hints(*args):

@@ -16,6 +16,7 @@ from ..format.fields import (
     TRANSFORMS_1D,
     WAVELETS,
 )
+from . import deliver
 from .cliopts import memory_size, natural_int, positive_float, positive_int
 
 __all__ = ["FORMATS", "UsageError", "build_parser"]
@@ -149,6 +150,7 @@ def _add_encode(sub) -> None:
         "(bounded memory at any size, a region decodes alone; default: tiles of 512 only for an image "
         "that would not fit --max-memory in one piece)",
     )
+    deliver.add_green_option(p, decoding=False)
     _common(p)
 
 
@@ -158,8 +160,9 @@ def _add_decode(sub) -> None:
     p.add_argument(
         "output",
         help=".png or .tif (the source's bit depth: 8, 16, or 16-bit PNG and float TIFF for float "
-        "sources), .exr or .npy (float32)",
+        "sources), .exr or .npy (float32); .ktx2 or .dds (a normal map, for the GPU)",
     )
+    deliver.add_decode_options(p)
     p.add_argument(
         "--no-restore",
         action="store_true",
@@ -317,6 +320,7 @@ def _add_batch(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--report", metavar="FILE", help="report .csv or .parquet (default DIR/report.csv)")
     p.add_argument("-f", "--force", action="store_true", help="redo files an earlier run left up to date")
+    deliver.add_batch_options(p)
 
 
 def _common(p: argparse.ArgumentParser) -> None:

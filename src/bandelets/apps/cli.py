@@ -10,6 +10,7 @@ file and renamed, so a failed command leaves nothing behind.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import sys
@@ -21,6 +22,7 @@ from pathlib import Path
 from ..format.fields import (
     Kind,
 )
+from . import deliver
 from .arguments import UsageError, build_parser
 from .cliopts import rate_list
 
@@ -108,6 +110,10 @@ def _encode(args) -> None:
         lossless=True if args.lossless else False if args.no_lossless else None,
     )
     encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
+    if args.green == "down":
+        if args.kind != "normal-map":
+            raise UsageError("--green is for normal maps (--kind normal-map)")
+        encoded = dataclasses.replace(encoded, data=deliver.with_green(encoded.data, args.green))
     write_atomic(args.output, encoded.data)
     if not args.quiet:
         from .summary import encode_summary
@@ -126,24 +132,28 @@ def _decode(args) -> None:
     _check_output(args.input, args.output, args.force)
     from ..io.files import check_suffix
 
-    check_suffix(args.output, "output")
+    gpu = deliver.gpu_suffix(args.output)
+    if not gpu:
+        check_suffix(args.output, "output")
+    if args.level < 0:
+        raise UsageError(f"--level is 0 or more, not {args.level}")
     _working(args.quiet)
     start = time.perf_counter()
-    from ..codec.decoder import decode
-    from ..format.container import header_of
-    from ..io.files import write_array
+    from ..codec.levels import prefix_header
 
     with _about(args.input):
         data = _read_bdl(args.input)
-        header = header_of(data)
         progress = sys.stderr.isatty() and not args.quiet
-        decoded = decode(data, restore=not args.no_restore, max_memory=args.max_memory, progress=progress)
-    write_array(args.output, decoded, header.kind, header.depth)
+        options = {"restore": not args.no_restore, "max_memory": args.max_memory, "progress": progress}
+        decoded, added, count = deliver.write_outputs(
+            data, args.output, args.level, args.mips, args.gpu, args.green, **options
+        )
     if not args.quiet:
         from .summary import decode_summary
 
         elapsed = time.perf_counter() - start
-        print(decode_summary(args.input, args.output, decoded, header, elapsed), file=sys.stderr)
+        line = decode_summary(args.input, args.output, decoded, prefix_header(data), elapsed) + added
+        print(line + (f", {count} levels" if args.mips else ""), file=sys.stderr)
 
 
 @contextlib.contextmanager
@@ -166,6 +176,7 @@ def _read_bdl(path: str) -> bytes:
 def _info(args) -> None:
     _check_input(args.input)
     _working()
+    from ..codec.levels import level_bytes
     from ..format.container import header_of, is_tiled, read
     from ..format.fields import FORMAT_VERSION
     from ..format.header import unpack
@@ -209,13 +220,14 @@ def _info(args) -> None:
             "coefficients": 8 * len(streams[2]),
         },
         "format_version": FORMAT_VERSION,
+        "level_bytes": level_bytes(data),
     }
     if is_tiled(data):
         info |= {"tile": grid.tile, "tiles": len(grid.boxes)}
     if header.kind == Kind.GEOMETRY_IMAGE:
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
     if header.kind == Kind.NORMAL_MAP:
-        info |= {"layout": header.layout, "folded": header.folded}
+        info |= {"layout": header.layout, "folded": header.folded, "green": header.green}
     if header.kind == Kind.GEOMETRY_IMAGE or header.frames:
         info |= {"frames": header.frames, "normal_weight": header.normal_weight}
     print(json.dumps(info))
@@ -419,6 +431,10 @@ def _batch(args) -> int:
         force=args.force,
         progress=sys.stderr.isatty(),
     )
+    if args.to:  # each file of the batch decoded beside it (bandelets.apps.deliver.ship)
+        for row in report[report.status != "failed"].itertuples():
+            with _about(row.output):
+                deliver.ship(row.output, args.to, args.mips, args.gpu, args.green)
     failed = report[report.status == "failed"]
     for row in failed.itertuples():
         named = row.error.startswith(f"{row.input}:")

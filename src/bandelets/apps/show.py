@@ -15,6 +15,7 @@ import numpy as np
 from ..coding.image import code_image, new_coders
 from ..format.fields import LOSSLESS, padded_shape
 from ..format.header import Header, unpack
+from ..format.levels import parts
 from ..format.quantizer import dequantize
 from ..transform.bandeletize import debandeletize
 from ..transform.geometry import directions
@@ -86,7 +87,7 @@ def geometry_figure(data: bytes, path: Path) -> None:
     header, streams = unpack(data)
     if header.transform == LOSSLESS:
         raise ValueError("a lossless file has no quadtrees, directions or subbands to show")
-    trees, quantized, _ = code_image(new_coders(streams), header)
+    trees, quantized, _ = code_image(new_coders(parts(streams, header.segments)), header)
     magnitudes = wavelet_magnitudes(header, trees, quantized)
     outlines, flows = _segments(header, trees)
     height, width = magnitudes.shape

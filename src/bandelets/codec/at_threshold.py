@@ -7,11 +7,11 @@ coefficients: the wavelet transform and the lifting are done once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..coding.image import code_image, code_lifting, new_coders
+from ..coding.image import code_image, new_coders
 from ..coding.order import approximation_plan
 from ..format.header import Header, pack
 from ..format.quantizer import dequantize, quantize
@@ -102,10 +102,12 @@ def encode_at_threshold(
         for b, q, scale in zip(bandelets, quantized, scales, strict=True)
     )
     del bandelets  # not held while coding: the peak of a large image's encoding
-    splits, dirs, coeffs = coders = new_coders()
-    trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized])
-    code_lifting(dirs, header, lifting)
-    data = pack(header, (splits.finish(), dirs.finish(), coeffs.finish()))
+    coders = new_coders()
+    trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized], lifting=lifting)
+    # Format version 19: the streams stored level by level (bandelets.format.levels).
+    segments = tuple(zip(*([len(p) for p in c.segments] for c in coders), strict=True))
+    header = replace(header, segments=segments)
+    data = pack(header, tuple(b"".join(c.segments) for c in coders))
     return Encoded(data, threshold, sse, header=header, trees=trees, bins=quantized, lifting=lifting)
 
 

@@ -12,7 +12,7 @@ from itertools import islice
 import numpy as np
 
 from ..coding import lossless, rangecoder
-from ..coding.image import code_image, code_lifting, new_coders
+from ..coding.image import code_image, new_coders
 from ..format.container import TILE_WORK, WORKERS, check_region, check_tile_count, is_tiled, output_of, read
 from ..format.fields import (
     FORMAT_VERSION,
@@ -26,6 +26,7 @@ from ..format.fields import (
     padded_shape,
 )
 from ..format.header import Header, unpack
+from ..format.levels import parts
 from ..format.limits import check_memory, check_work, decoder_memory, restoration_work
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
@@ -37,6 +38,7 @@ from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
 from ..transform.normals import unit_normals
 from ..transform.wavelets import wavedec, waverec
+from .levels import decode_level
 
 __all__ = [
     "check",
@@ -57,6 +59,7 @@ def decode(
     max_work: int = MAX_WORK,
     region: tuple[int, int, int, int] | None = None,
     progress: bool = False,
+    level: int = 0,
     **limits,
 ) -> np.ndarray:
     """Decode a .bdl file.
@@ -81,6 +84,12 @@ def decode(
         Decode only this box of the image: of a tiled file, only the tiles it touches.
     progress : bool
         A progress bar on stderr over the tiles of a tiled file.
+    level : int
+        Decode the image at ``1 / 2**level`` of the size (each side rounded up) from the first bytes
+        of the file only (format version 19; ``data`` may be a prefix of the file that holds that
+        level, :func:`bandelets.codec.levels.level_bytes`): the wavelet transform's coarse
+        approximation, without restoration or loop filter (:mod:`bandelets.codec.levels`).
+        0: the full decode. Not with ``region``; not of a lossless file.
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.format.header.unpack`).
 
@@ -110,6 +119,10 @@ def decode(
         data = bytes(memoryview(data))
     except TypeError:
         raise TypeError(f"decode takes the bytes of a .bdl file, not {type(data).__name__}") from None
+    if level:
+        if region is not None:
+            raise ValueError("decode at a level takes no region: crop the image it returns")
+        return decode_level(data, level, max_memory, **limits)
     if is_tiled(data):
         return _decode_tiles(
             data,
@@ -175,12 +188,11 @@ def decoded_bins(
 ) -> tuple[list, list[np.ndarray], list | None]:
     """The quadtrees, the bin indices, shape (H', W') per channel, and the directions of the
     levels lifted along directions (None without), that the streams hold."""
-    coders = new_coders(streams)
+    coders = new_coders(parts(streams, header.segments))
     try:
-        trees, quantized, _ = code_image(coders, header)
-        lifting = code_lifting(coders[1], header)
-        for coder in coders:
-            coder.check()
+        lifting: list = []
+        trees, quantized, _ = code_image(coders, header, lifting=lifting)
+        lifting = lifting if header.lifting else None
     except rangecoder.CorruptStream as err:
         raise FormatError(f"corrupt .bdl file: {err}") from None
     shape = padded_shape((header.height, header.width), header.levels)

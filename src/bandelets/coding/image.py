@@ -52,6 +52,9 @@ def code_image(
     trees: list | None = None,
     quantized: list[np.ndarray] | None = None,
     estimate: bool = False,
+    *,
+    lifting: list | None = None,
+    upto: int = 0,
 ) -> tuple[list, list, list]:
     """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
 
@@ -62,6 +65,14 @@ def code_image(
     what the previous channel coded, bandelet coefficients included. After a channel's
     bandelet squares, the contexts are given the wavelet coefficients those
     squares decode to.
+
+    Format version 19: the streams are cut (:meth:`bandelets.coding.rangecoder.Coder.cut`) after
+    the approximation and after each level's three subbands, so that the file stores them level by
+    level (:mod:`bandelets.format.levels`); the directions of the levels lifted along directions
+    (:func:`code_lifting`, into ``lifting``: the fields to code, or a list the decoded ones are
+    appended to) end the directions of the coarsest lifted level. ``upto``: decode the levels
+    coarser than ``upto`` only (1 = finest; 0: all), the bins of the others left at zero; the
+    trees returned are then those of the levels decoded.
 
     ``estimate``: the approximation is coded with version 17's model
     (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's
@@ -87,8 +98,13 @@ def code_image(
     for c, q in enumerate(quantized):
         code = coefficients.code_coefficients if estimate else approximation.code_approximation
         code(coeffs, q, coarse, known[c], guides[c], spent[c])
+    segments = [[] for _ in coders]
+    _cut(coders, segments)
     out = []
     for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
+        level = header.levels - index // 3
+        if level <= upto:
+            break
         band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
         if header.transform == "bandelet":
             tree = code_tree(
@@ -110,20 +126,50 @@ def code_image(
                 view = known[c].reshape(shape)[where]
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             coefficients.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
+        if index % 3 == 2:
+            if level == header.lifting and (decoding or lifting is not None):  # else: a price only
+                fields = code_lifting(dirs, header, None if decoding else lifting)
+                if decoding and lifting is not None:
+                    lifting.extend(fields)
+            _cut(coders, segments)
+    if not decoding:
+        for coder, parts in zip(coders, segments, strict=True):
+            coder.segments = parts
     return out, quantized, spent
+
+
+def _cut(coders: tuple, segments: list[list[bytes]]) -> None:
+    """End the segment of every stream (:meth:`bandelets.coding.rangecoder.Coder.cut`)."""
+    for coder, parts in zip(coders, segments, strict=True):
+        following = None
+        if coder.decoding:
+            following = coder.pending.pop(0) if coder.pending else b""
+        parts.append(coder.cut(following))
 
 
 def code_lifting(coder: rangecoder.Coder, header: Header, lifting: list | None = None) -> list | None:
     """Code (``lifting`` given) or decode the directions of the levels lifted along directions
-    (:func:`bandelets.transform.directional.code_fields`), which end the directions stream, after
-    :func:`code_image`; None for a file without them."""
+    (:func:`bandelets.transform.directional.code_fields`), which end the directions of the coarsest
+    lifted level (:func:`code_image` calls it); None for a file without them."""
     if not header.lifting:
         return None
     shape = padded_shape((header.height, header.width), header.levels)
     return directions.code_fields(coder, lifting, shape, header.lifting, N_DIRECTION_CONTEXTS)
 
 
-def new_coders(data: tuple[bytes, bytes, bytes] | None = None) -> tuple[rangecoder.Coder, ...]:
-    """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``."""
+def new_coders(data: tuple | None = None) -> tuple[rangecoder.Coder, ...]:
+    """Coders of the three streams (splits, directions, coefficients): encoders, or decoders of ``data``,
+    each stream its bytes or the list of its segments, level by level
+    (:func:`bandelets.format.levels.parts`).
+
+    An encoder's segments are its ``segments`` after :func:`code_image`."""
     sizes = (N_SPLIT_CONTEXTS, N_DIRECTION_CONTEXTS + directions.N_CONTEXTS, approximation.N_CONTEXTS)
-    return tuple(rangecoder.Coder(n, None if data is None else data[i]) for i, n in enumerate(sizes))
+    coders = []
+    for i, n in enumerate(sizes):
+        parts = None if data is None else data[i]
+        parts = [parts] if isinstance(parts, (bytes, bytearray)) else parts
+        coder = rangecoder.Coder(n, None if parts is None else parts[0])
+        coder.pending = [] if parts is None else list(parts[1:])
+        coder.segments = []
+        coders.append(coder)
+    return tuple(coders)

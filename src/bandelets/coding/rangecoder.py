@@ -103,6 +103,9 @@ class Coder:
         self.probs = np.full(n_contexts, _PROB_ONE // 2, np.int64)
         self.counts = np.zeros(n_contexts, np.int64)
         self.state = np.zeros(6, np.int64)
+        #: The segments to decode after this one; those the encoder has cut (format version 19, :meth:`cut`).
+        self.pending: list[bytes] = []
+        self.segments: list[bytes] = []
         if self.decoding:
             self.buf = np.frombuffer(bytes(data), np.uint8).copy()
             _decoder_start(self.state, self.buf)
@@ -130,6 +133,30 @@ class Coder:
         """Raise :class:`CorruptStream` if the decoder ran past the end of its stream."""
         if self.decoding and self.state[POSITION] - self.buf.shape[0] > 4:
             raise CorruptStream("coded stream is truncated or corrupt")
+
+    def cut(self, following: bytes | None = None) -> bytes:
+        """End a segment of the stream (format version 19: one per wavelet level, so that a prefix of
+        a file decodes): the arithmetic state restarts, the adaptive contexts go on.
+
+        Encoder: flushes the fewest bytes that decode to what was coded (:func:`_short_flush`;
+        trailing zeros are not stored, the decoder reads zeros past the end of a segment) and
+        returns the segment. Decoder: checks the segment just read and starts on ``following``.
+        """
+        if self.decoding:
+            self.check()
+            self.buf = np.frombuffer(bytes(following or b""), np.uint8).copy()
+            _decoder_start(self.state, self.buf)
+            return b""
+        self.reserve(8)
+        _short_flush(self.state, self.buf)
+        data = self.buf[1 : self.state[POSITION]].tobytes()
+        # At most 4 zeros dropped: the decoder reads 4 bytes ahead (check() allows that much).
+        stripped = data.rstrip(b"\0")
+        data = data[: max(len(stripped), len(data) - 4)]
+        spent = self.state[SPENT]
+        self.state[:] = 0
+        self.state[_RANGE], self.state[_CACHE_SIZE], self.state[SPENT] = 0xFFFFFFFF, 1, spent
+        return data
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -165,6 +192,24 @@ def _shift_low(r, buf):
 @kernel
 def _encoder_flush(st, buf):
     r = registers(st)
+    for _ in range(5):
+        r = _shift_low(r, buf)
+    keep_registers(st, r)
+
+
+@kernel
+def _short_flush(st, buf):
+    """Flush with the value of the final interval ``[low, low + range)`` that ends in the most zero
+    bits, so that its trailing zero bytes need not be stored: 1 or 2 bytes where a full flush
+    writes 4."""
+    r = registers(st)
+    low, rng = r[0], r[1]
+    for bits in range(32, -1, -1):
+        step = np.int64(1) << bits
+        value = (low + step - 1) >> bits << bits
+        if value < low + rng:
+            break
+    r = (value, rng, r[2], r[3], r[4], r[5])
     for _ in range(5):
         r = _shift_low(r, buf)
     keep_registers(st, r)

@@ -60,7 +60,7 @@ __all__ = [
 #: The first bytes of every .bdl file.
 MAGIC = b"BDL\x1a"
 #: The version this build writes and reads (``docs/history.md``: what each version changed).
-FORMAT_VERSION = 18
+FORMAT_VERSION = 19
 #: The byte where a file of one tile has its kind, in a tiled file (:mod:`bandelets.format.container`).
 TILED_CODE = 255
 

@@ -13,7 +13,8 @@ Layout (little endian)::
     7       1     wavelet levels (1 to MAX_LEVELS), plus 8 times the channels coded less one (1 to
                   4; a normal map: 3, or 2 when z is rebuilt, see below), plus 32 times the source's
                   sample depth: DEPTH_CODES (0 float, 1 8-bit, 2 16-bit: bits of PNG or TIFF
-                  samples, for decoding back to them); the top bit is 0
+                  samples, for decoding back to them), plus 128 if a normal map's green channel
+                  points down (DirectX; format version 19; 0: up, OpenGL)
     8       1     restoration iterations, 0 to 100 (0: off; :mod:`bandelets.restore.restoration`), plus 128
                   if the file has a loop filter (format version 11)
     9       1     finest wavelet levels lifted along directions (0: none;
@@ -22,16 +23,18 @@ Layout (little endian)::
                   64 more if its rows run against the slope (format version 15, see below),
                   plus 128 if the image is folded (format version 14, see below)
     10      4     threshold T (float32, MIN_THRESHOLD to MAX_THRESHOLD)
-    14      ...   height, width, then the byte lengths of the three streams (quadtree splits,
-                  directions, coefficients): five unsigned LEB128 integers (7 bits a byte, low
+    14      ...   height, width, then the byte lengths of the segments of the three streams
+                  (quadtree splits, directions, coefficients) of each group of levels, group by
+                  group (format version 19, :mod:`bandelets.format.levels`; group 0 its
+                  coefficients' alone): ``3 levels + 1`` unsigned LEB128 integers (7 bits a byte, low
                   bits first, the top bit set on every byte but the last; at most 5 bytes, no
                   needless trailing byte, below 2**32)
     ...     ...   geometry-image options (kind 2 only, see below)
-    ...     ...   the three streams
+    ...     ...   the segments, group by group (coarse to fine), each group's three in order
     ...     ...   the loop filter (format version 11; when byte 8 says so; :mod:`bandelets.format.filter`)
     end-4   4     CRC32 of everything before it
 
-The history of the format's versions is in ``docs/history.md``; this build reads version 18 only.
+The history of the format's versions is in ``docs/history.md``; this build reads version 19 only.
 
 The layout of a normal map's source, which the decoder returns (since version 11 it also says
 how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for the others):
@@ -97,6 +100,7 @@ from .fields import (
     Wavelet,
 )
 from .filter import LoopFilter, most_filter_bytes, pack_filter, unpack_filter
+from .levels import group_count, interleave, segment_lengths, split, stored_lengths
 
 __all__ = ["HEADER_BYTES", "Header", "implied_options", "pack", "streams_offset", "unpack"]
 
@@ -120,8 +124,10 @@ _DEPTH_OF = {code: depth for depth, code in DEPTH_CODES.items()}
 _FIXED = struct.Struct("<4sBBBBBBf")
 #: Most bytes of an LEB128 integer (below 2**32).
 _MOST_VARINT_BYTES = 5
-#: Size of the smallest possible file: the fixed header, five one-byte integers and the CRC.
+#: Size of the smallest possible file: the fixed header, five one-byte integers (a lossless file) and the CRC.
 HEADER_BYTES = _FIXED.size + 5 + 4
+#: The green conventions of a normal map (byte 7's top bit: 0 up, OpenGL; 1 down, DirectX).
+GREENS = ("up", "down")
 #: Options of a geometry image: extension and frames, normal weight (then the LEB128 vertices of
 #: the source mesh).
 _GEOMETRY = struct.Struct("<Bf")
@@ -210,6 +216,12 @@ class Header:
     #: version
     #: 15): 0 not, else the ``sign`` of :func:`bandelets.transform.riesz.forward` (1 or -1).
     riesz: int = 0
+    #: The byte lengths of the segments of the three streams, group by group (format version 19,
+    #: :mod:`bandelets.format.levels`); empty: every byte in the last group.
+    segments: tuple = ()
+    #: Where a normal map's green channel (y) points: "up" (OpenGL) or "down" (DirectX); format
+    #: version 19, a label the decoder keeps (``bandelets decode --green`` flips y to the other).
+    green: str = "up"
 
     def __post_init__(self) -> None:
         # The file holds the threshold and the normal weight as float32s (format version 17): a
@@ -234,7 +246,8 @@ def streams_offset(data: bytes) -> int:
     image): :class:`FormatError` where its header is cut short or its integers malformed."""
     if len(data) < _FIXED.size:
         raise FormatError(f"truncated .bdl file ({len(data)} bytes)")
-    start = _varints(data, _FIXED.size, 5)[1]
+    groups = group_count(data[7] % 8, _TRANSFORM_OF.get(data[6] % 4))
+    start = _varints(data, _FIXED.size, 3 * groups)[1]
     if data[5] == KIND_CODES[Kind.GEOMETRY_IMAGE]:
         start = _varints(data, start + _GEOMETRY.size, 1)[1]
     return start
@@ -250,9 +263,9 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
     ...     threshold=0.5,
     ... )
     >>> data = pack(header, (b"", b"", b"ab"))
-    >>> len(data) == HEADER_BYTES + 2
+    >>> len(data) == HEADER_BYTES + 1 + 2  # six integers: the sides, 1 + 3 segment lengths
     True
-    >>> unpack(data) == (header, (b"", b"", b"ab"))
+    >>> unpack(data) == (replace(header, segments=((0, 0, 0), (0, 0, 2))), (b"", b"", b"ab"))
     True
     """
     # Values that would run into the next field's bits (the decoder checks the others' meaning).
@@ -276,12 +289,11 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         + 4 * WAVELET_CODES[header.wavelet]
         + 32 * TRANSFORM_1D_CODES[header.transform_1d]
         + 64 * LAYOUT_CODES[header.layout],
-        header.levels + 8 * (header.channels - 1) + 32 * DEPTH_CODES[header.depth],
+        header.levels + 8 * (header.channels - 1) + 32 * DEPTH_CODES[header.depth] + 128 * _green(header),
         header.restoration + (128 if header.loop_filter is not None else 0),
         header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
         header.threshold,
     )
-    body += b"".join(_varint(n) for n in (header.height, header.width, *map(len, streams)))
     if header.layout != Layout.XYZ and (header.kind, header.channels) != (Kind.NORMAL_MAP, 2):
         raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
     if header.folded and not _can_fold(
@@ -302,10 +314,12 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
                 f"a {header.kind} of {header.channels} channels has no choice of extension, frames, "
                 f"normal weight or mesh vertices: {header}"
             )
+    segments = segment_lengths(header.levels, header.transform, header.segments, streams)
+    body += b"".join(_varint(n) for n in (header.height, header.width, *stored_lengths(segments)))
     if header.kind == Kind.GEOMETRY_IMAGE:
         body += _GEOMETRY.pack(EXTENSION_CODES[header.extension] + 2 * header.frames, header.normal_weight)
         body += _varint(header.mesh_vertices)
-    body += b"".join(streams)
+    body += interleave(streams, segments)
     if header.loop_filter is not None:
         body += pack_filter(header.loop_filter, header.channels)
     return body + struct.pack("<I", zlib.crc32(body))
@@ -364,10 +378,6 @@ def _consistency(
         (MIN_THRESHOLD <= threshold <= MAX_THRESHOLD, f"bad threshold {threshold}"),
         (restoration <= MAX_RESTORATION, f"{restoration} restoration iterations (at most {MAX_RESTORATION})"),
         (
-            0 < spare - sum(lengths) <= most_filter_bytes(channels) if filtered else sum(lengths) == spare,
-            "stream lengths do not match the file size",
-        ),
-        (
             lifting == 0 or (wavelet == "cdf97" and kind != Kind.GEOMETRY_IMAGE),
             f"directional lifting of a {kind} of {channels} channels, wavelet {wavelet}",
         ),
@@ -394,6 +404,11 @@ def _consistency(
             f"a lossless file of depth {depth} with lossy fields (levels, threshold, restoration, "
             "loop filter, lifting or geometry streams)",
         ),
+        # Last: a field patched to another count of levels or transform reads other integers (format 19).
+        (
+            0 < spare - sum(lengths) <= most_filter_bytes(channels) if filtered else sum(lengths) == spare,
+            "stream lengths do not match the file size",
+        ),
     ]
 
 
@@ -418,6 +433,16 @@ def unpack(
     ------
     FormatError
     """
+    header, parts = unpack_prefix(data, whole=True, max_side=max_side, max_samples=max_samples)
+    return header, tuple(b"".join(p) for p in parts)
+
+
+def unpack_prefix(
+    data: bytes, *, whole: bool = False, max_side: int = MAX_SIDE, max_samples: int = MAX_SAMPLES
+) -> tuple[Header, tuple[list[bytes], list[bytes], list[bytes]]]:
+    """The header of a .bdl file or a prefix of one (``whole``: the file) and the segments of each stream
+    (:mod:`bandelets.format.levels`) of the groups it holds in whole. A prefix has no CRC (it is at the
+    end) and no loop filter read; its header is checked as a whole file's."""
     if len(data) < 4 or data[:4] != MAGIC:
         raise FormatError("not a .bdl file (bad magic number)")
     if len(data) < HEADER_BYTES:
@@ -433,10 +458,19 @@ def unpack(
             "a tiled .bdl file: read it whole with bandelets.decode (bandelets.format.container)"
         )
     body, crc = data[:-4], struct.unpack("<I", data[-4:])[0]
-    if zlib.crc32(body) != crc:
+    complete = zlib.crc32(body) == crc
+    if whole and not complete:
         raise FormatError("corrupt .bdl file (CRC32 mismatch)")
+    if not complete:  # a prefix: every byte is the file's
+        body = data
     kind_code, codes, sizes, restoration, lifting_byte, threshold = fields[2:]
-    (height, width, *lengths), start = _varints(body, _FIXED.size, 5)
+    green, sizes = sizes // 128, sizes % 128
+    if not 1 <= sizes % 8 <= MAX_LEVELS:  # before the integers, whose count it gives
+        raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {sizes % 8}")
+    groups = group_count(sizes % 8, _TRANSFORM_OF.get(codes % 4))
+    (height, width, *flat), start = _varints(body, _FIXED.size, 3 * groups)
+    segments = ((0, 0, flat[0]),) + tuple(tuple(flat[3 * g - 2 : 3 * g + 1]) for g in range(1, groups))
+    lengths = [sum(g[s] for g in segments) for s in range(3)]
     transform_code, wavelet_code, along_code, layout_code = (
         codes % 4,
         codes // 4 % 8,
@@ -458,20 +492,20 @@ def unpack(
     checks = _consistency(
         kind, channels, transform, wavelet, depth, layout, along, height, width, levels, threshold,
         restoration, filtered, lifting, folded, riesz, lifting_byte,
-        (kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code), lengths, len(body)
-        - start,
-        max_side, max_samples,
+        (kind_code, transform_code, wavelet_code, depth_code, layout_code, along_code), lengths,
+        len(body) - start if complete else sum(lengths) + (filtered and 1), max_side, max_samples,
     )  # fmt: skip
+    checks.append((not green or kind == Kind.NORMAL_MAP, f"a green convention for a {kind}"))
     for ok, message in checks:
         if not ok:
             raise FormatError(f"corrupt .bdl file: {message}")
-    if not 1 <= levels <= MAX_LEVELS:
-        raise FormatError(f"corrupt .bdl file: bad number of wavelet levels {levels}")
     if kind == Kind.GEOMETRY_IMAGE:
         options = _geometry_options(*stored, vertices, wavelet, levels, height, width)
     else:
         options = implied_options(kind, channels)
-    loop_filter = unpack_filter(body[start + sum(lengths) :], channels) if filtered else None
+    loop_filter = None
+    if filtered and complete:
+        loop_filter = unpack_filter(body[start + sum(lengths) :], channels)
     header = Header(
         height=height,
         width=width,
@@ -490,12 +524,16 @@ def unpack(
         loop_filter=loop_filter,
         folded=bool(folded),
         riesz=riesz,
+        segments=segments,
+        green=GREENS[green],
     )
-    streams = []
-    for n in lengths:
-        streams.append(bytes(data[start : start + n]))
-        start += n
-    return header, tuple(streams)
+    return header, split(body, start, segments)
+
+
+def _green(header: Header) -> int:
+    if header.green not in GREENS or (header.green == "down" and header.kind != Kind.NORMAL_MAP):
+        raise ValueError(f"green is 'up' or 'down', and 'down' for a normal map only: {header}")
+    return GREENS.index(header.green)
 
 
 #: Byte 9's Riesz bits (32 on, 64 rows against the slope) of each :attr:`Header.riesz`.
