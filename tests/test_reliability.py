@@ -250,7 +250,7 @@ def test_a_zero_area_triangle_is_refused(tmp_path, capsys, command):
     mesh.write_text(_FLAT_OCTAHEDRON)
     out = tmp_path / ("out.bdl" if command == "mesh-encode" else "out.npy")
     err = _one_line_error(capsys, tmp_path, command, mesh, out, "--size", "16")
-    assert "1 triangle of zero area" in err
+    assert "1 face of zero area" in err
 
 
 def test_a_mesh_too_large_for_max_memory_is_refused_before_the_work():
