@@ -14,6 +14,7 @@ import numpy as np
 from . import directional, entropy, frames, loopfilter, lossless, metrics, restoration, riesz, tiling
 from .bandeletize import bandeletize, debandeletize
 from .bitstream import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Header, unpack
+from .blasthreads import one_blas_thread
 from .coding import code_image, code_lifting, new_coders
 from .memory import check_memory, check_work
 from .quantize import dequantize
@@ -30,6 +31,7 @@ __all__ = [
 ]
 
 
+@one_blas_thread()  # the decoder runs threads of its own: BLAS one (bandelets.blasthreads)
 def decode(
     data: bytes,
     *,

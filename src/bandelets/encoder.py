@@ -35,6 +35,7 @@ from .bitstream import (
     pack,
     unpack,
 )
+from .blasthreads import one_blas_thread
 from .coding import code_image, code_lifting, new_coders
 from .decoder import decode, decoded_bins, decoded_image, restorations
 from .files import as_read, to_samples
@@ -350,6 +351,7 @@ def encode(
     ).data
 
 
+@one_blas_thread()  # the encoder runs threads of its own: BLAS one (bandelets.blasthreads)
 def encode_with_stats(
     array,
     options: EncodeOptions,
