@@ -47,6 +47,7 @@ from .options import AUTO_WAVELET, EncodeOptions, check_image, check_targets, ge
 from .progress import Progress
 from .quantize import dequantize, optimise_bins, quantize
 from .transform import apply_trees, best_trees, padded_channels, wavelet_coefficients
+from .treememo import TreeMemo
 from .wavelets import max_levels, subband_slices, wavedec
 
 __all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats", "encode_at_threshold"]
@@ -83,20 +84,21 @@ class Encoded:
 
 
 def encode_at_threshold(
-    coefficients: list[np.ndarray], header: Header, lifting: list | None = None
+    coefficients: list[np.ndarray], header: Header, lifting: list | None = None, search=best_trees
 ) -> Encoded:
     """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
 
     Rate control calls this repeatedly with the same coefficients: the wavelet transform is
     done once, the basis search and the coding once per threshold. ``lifting``: the directions
     of the levels lifted along directions (:func:`bandelets.directional.analysis`) when
-    ``header.lifting``.
+    ``header.lifting``. ``search``: :func:`bandelets.transform.best_trees` or a rate-control
+    loop's :meth:`bandelets.treememo.TreeMemo.search`.
     """
     threshold = header.threshold
     before, source = None, coefficients
     if header.frames:
         coefficients, before = _local_frames(source, header)
-    trees = best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
+    trees = search(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
     bandelets = [apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients]
     quantized = [quantize(b, threshold) for b in bandelets]
     # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
@@ -431,7 +433,7 @@ def encode_with_stats(
     turn = 0
     (height, width), channels = x.shape[:2], coded.shape[2]
 
-    def encode_at(t: float, transform: str = options.transform) -> Encoded:
+    def encode_at(t: float, transform: str = options.transform, search=best_trees) -> Encoded:
         header = Header(
             height=height,
             width=width,
@@ -449,7 +451,7 @@ def encode_with_stats(
             folded=folded,
             riesz=turn,
         )
-        return encode_at_threshold(coefficients, header, lifting)
+        return encode_at_threshold(coefficients, header, lifting, search)
 
     magnitudes = np.abs(np.concatenate([c.ravel() for c in coefficients]))
     # Above every coefficient, within the thresholds a file may hold: an image of zeros (or of
@@ -605,12 +607,16 @@ def encode_with_stats(
                 lifted = np.concatenate([c.ravel() for c in coefficients])
                 return ratecontrol.size_model(np.abs(lifted[::3]), lifted.size)
 
+            def reusing():
+                # The loop's later encodes reuse the geometry of its first (bandelets.treememo).
+                return partial(encode_at, search=TreeMemo().search)
+
             # A wavelet file aims the first encoding (none where it would be the file itself).
             probe = None if options.transform == "wavelet" else partial(_probe, encode_at, bpp)
             if lifting is not None or turn:
                 model = lifted_model()
             kept = finished(
-                ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD, room, probe)
+                ratecontrol.for_size(reusing(), target, t_max, model, line, MIN_THRESHOLD, room, probe)
             )
             while trials and kept.psnr is not None:
                 # Directions or a Riesz pair close to paying: that file too, the better kept.
@@ -619,7 +625,7 @@ def encode_with_stats(
                     t_max = _above(coefficients, t_max)
                 model = lifted_model()
                 other = finished(
-                    ratecontrol.for_size(encode_at, target, t_max, model, line, MIN_THRESHOLD, room, probe)
+                    ratecontrol.for_size(reusing(), target, t_max, model, line, MIN_THRESHOLD, room, probe)
                 )
                 kept = other if other.psnr > kept.psnr else kept
             return kept
