@@ -23,7 +23,7 @@ their 8-bit samples (as ``benchmarks/rd_normal_maps.py`` reads them; ``--floats`
 vectors made from them, as ``../shared/tools/quick-speed.py`` gives them); a map whose file is
 absent is skipped with a message. AVIF is timed at speed 6 and at speed 2 (the anchor of the
 rate-distortion tables) on every map. ``--stages``: after the timed runs, one more encode of each
-map under cProfile, its time split into the encoder's stages (:data:`STAGES`: the direction
+map under cProfile, its CPU time split into the encoder's stages (:data:`STAGES`: the direction
 search of the bandelet squares, the lifting's directions, the Riesz pair's choice, the
 coefficients' coding, the restoration search, the loop filter; each stage's cumulative time,
 which the profiler inflates a little) with the count of rate-control loops and of full encodes.
@@ -167,11 +167,13 @@ def _fits(size: int) -> str | None:
 
 def _stages(encode) -> str:
     """One ``encode()`` under cProfile: the seconds of each of :data:`STAGES` (cumulative, summed
-    over the functions of that name in the package), the encodes and rate-control loops."""
-    profile = cProfile.Profile()
-    start = time.perf_counter()
+    over the functions of that name in the package), the encodes and rate-control loops. The
+    profiler's clock is the process's CPU time (all threads): on a shared machine the wall time of
+    a stage measures the other processes as much as the stage."""
+    profile = cProfile.Profile(time.process_time)
+    start, wall = time.process_time(), time.perf_counter()
     profile.runcall(encode)
-    total = time.perf_counter() - start
+    total, wall = time.process_time() - start, time.perf_counter() - wall
     stats = pstats.Stats(profile).stats  # (file, line, name) -> (calls, primitive, own, cumulative, callers)
 
     def of(*names: str, column: int = 3) -> float:
@@ -181,9 +183,9 @@ def _stages(encode) -> str:
     rest = total - sum(of(*names) for stage, names in STAGES.items() if not stage.startswith("of which"))
     encodes = of("encode_at_threshold", column=0) - of("_probe", column=0)
     return (
-        f"stages of a profiled encode ({total:.2f} s): {parts}, rest {rest:.2f} s; "
-        f"{of('for_size', column=0):.0f} rate-control "
-        f"loops, {encodes:.0f} full encodes and {of('_probe', column=0):.0f} wavelet probes"
+        f"stages of a profiled encode (CPU {total:.2f} s, wall {wall:.2f} s), CPU: {parts}, "
+        f"rest {rest:.2f} s; {of('for_size', column=0):.0f} rate-control loops, {encodes:.0f} full "
+        f"encodes and {of('_probe', column=0):.0f} wavelet probes"
     )
 
 
