@@ -844,11 +844,8 @@ def _lifting_levels(options: EncodeOptions, levels: int, geometry: dict) -> int:
     return min(directional.LEVELS, levels) if wanted else 0
 
 
-#: The encoder stops trying more restoration iterations this many after the best so far: 5, not
-#: 10, took 0.35 / 0.27 s of CPU for 0.21 / 0.17 s from the restoration search of the godot vent and
-#: flight helmet maps at 1 bpp, the same files at 0.35 to 2 bpp on them and the acacia door and
-#: bevel@256, -0.032 dB BD on crease@512 (issue 36; 3: -0.038 on bevel@256).
-_RESTORATION_PATIENCE = 5
+#: The encoder stops trying more restoration iterations this many after the best so far.
+_RESTORATION_PATIENCE = 10
 #: Of the restoration's gain in PSNR over plain dequantization, the share the count written into
 #: the file keeps: the fewest iterations that reach it, not the best (the PSNR flattens out near
 #: the best: on the 512 x 512 crease map at 1 bpp 39 iterations instead of 45 keep 97 % of 5.9 dB,
