@@ -4,13 +4,14 @@ Rate control (:func:`bandelets.ratecontrol.for_size`) encodes the same coefficie
 thresholds, close to one another once the first file is made (on the shared real 512 x 512 maps
 at 0.5 to 2 bpp the first file missed the size window by 1 to 13 %: the second threshold is
 within a few per cent of the first). Each encode searched the bandelet geometry again (the
-quadtrees and directions of :func:`bandelets.transform.best_trees`, 45 to 70 % of an encode's
-time on those maps), for nearly the same choice: the Lagrangian ``error + lambda T**2 bits`` of
-a square moves little with ``T`` across a few per cent. A :class:`TreeMemo`, made for one loop,
-searches the geometry at the loop's first bandelet encode and hands the same trees to the later
-encodes whose threshold is within :data:`REUSE_WITHIN` (in ``log T``) of it; the wavelet files of
-the size probe have no geometry and are not counted. The trees are side information the file
-carries: any trees decode, and these were optimal a few per cent of ``T`` away.
+quadtrees and directions of :func:`bandelets.transform.best_trees`, 36 to 43 % of the CPU
+time of a 1 bpp encode of those maps), for nearly the same choice: the Lagrangian
+``error + lambda T**2 bits`` of a square moves little with ``T`` across a few per cent. A
+:class:`TreeMemo`, made for one loop, searches the geometry at the loop's first bandelet encode
+and hands the same trees to the later encodes whose threshold is within :data:`REUSE_WITHIN` (in
+``log T``) of it; the wavelet files of the size probe have no geometry and are not counted.
+The trees are side information the file carries: any trees decode, and these were optimal a few
+per cent of ``T`` away.
 """
 
 from __future__ import annotations
