@@ -59,20 +59,21 @@ class Encoded:
 
 
 def encode_at_threshold(
-    coefficients: list[np.ndarray], header: Header, lifting: list | None = None
+    coefficients: list[np.ndarray], header: Header, lifting: list | None = None, search=best_trees
 ) -> Encoded:
     """Encode the channels, given their (padded) wavelet coefficients, at ``header.threshold``.
 
     Rate control calls this repeatedly with the same coefficients: the wavelet transform is
     done once, the basis search and the coding once per threshold. ``lifting``: the directions
     of the levels lifted along directions (:func:`bandelets.transform.directional.analysis`) when
-    ``header.lifting``.
+    ``header.lifting``. ``search``: :func:`bandelets.search.basis.best_trees`, or a rate-control
+    loop's :meth:`bandelets.search.treememo.TreeMemo.search` (its later encodes reuse the geometry).
     """
     threshold = header.threshold
     before, source = None, coefficients
     if header.frames:
         coefficients, before = _local_frames(source, header)
-    trees = best_trees(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
+    trees = search(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
     bandelets = [apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients]
     quantized = [quantize(b, threshold) for b in bandelets]
     # Rate-distortion optimised quantization: a first coding pass prices every coefficient in

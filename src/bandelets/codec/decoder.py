@@ -31,6 +31,7 @@ from ..format.limits import check_memory, check_work, decoder_memory, restoratio
 from ..format.quantizer import dequantize
 from ..restore import loopfilter, restoration
 from ..restore.precisions import compile_both
+from ..runtime.blas import one_blas_thread
 from ..runtime.progress import Progress
 from ..runtime.threads import CORES, thread_map, workers
 from ..transform import directional, frames, riesz
@@ -51,6 +52,7 @@ __all__ = [
 ]
 
 
+@one_blas_thread()  # the decoder runs threads of its own: BLAS one (bandelets.runtime.blas)
 def decode(
     data: bytes,
     *,

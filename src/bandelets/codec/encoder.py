@@ -18,6 +18,7 @@ from ..format.fields import Kind
 from ..format.header import unpack
 from ..format.limits import OWN_FILE, check_encodable
 from ..format.samples import to_samples
+from ..runtime.blas import one_blas_thread
 from ..search.lagrangian import LAMBDA
 from . import normalmaps, tile_encoder
 from .at_threshold import Encoded
@@ -91,6 +92,7 @@ def encode(
     ).data
 
 
+@one_blas_thread()  # the encoder runs threads of its own: BLAS one (bandelets.runtime.blas)
 def encode_with_stats(
     array,
     options: EncodeOptions,

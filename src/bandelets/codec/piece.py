@@ -29,7 +29,9 @@ from ..format.samples import as_read
 from ..restore import loopfilter
 from ..runtime.progress import Progress
 from ..search import ratecontrol
+from ..search.basis import best_trees
 from ..search.levelchoice import levels_to_try
+from ..search.treememo import TreeMemo
 from ..transform import normals
 from ..transform.bandelets import wavelet_coefficients
 from .alternatives import (
@@ -232,8 +234,11 @@ class _PieceEncoder:
         if not (self.quality_target or (self.measured and not options.restore)):
             self.reference = None
 
-    def encode_at(self, candidate: Candidate, t: float, transform: str | None = None) -> Encoded:
-        """The file of ``candidate`` at the threshold ``t`` (``transform``: the options' if None)."""
+    def encode_at(
+        self, candidate: Candidate, t: float, transform: str | None = None, search=best_trees
+    ) -> Encoded:
+        """The file of ``candidate`` at the threshold ``t`` (``transform``: the options' if None;
+        ``search``: of the quadtrees, see :func:`bandelets.codec.at_threshold.encode_at_threshold`)."""
         plan, options = self.plan, self.options
         header = Header(
             height=plan.height,
@@ -252,7 +257,7 @@ class _PieceEncoder:
             folded=plan.folded,
             riesz=candidate.turn,
         )
-        return encode_at_threshold(candidate.coefficients, header, candidate.lifting)
+        return encode_at_threshold(candidate.coefficients, header, candidate.lifting, search)
 
     def finish(self, encoded: Encoded, budget: int | None = None) -> Encoded:
         """``encoded`` with the restoration and the loop filter chosen (the filter within ``budget``
@@ -321,9 +326,11 @@ class _PieceEncoder:
         return kept
 
     def _search_size(self, candidate: Candidate, bpp: float, target: int, room: int, model) -> Encoded:
-        encode_at = partial(self.encode_at, candidate)
+        # The loop's later encodes reuse the geometry of its first (bandelets.search.treememo).
+        encode_at = partial(self.encode_at, candidate, search=TreeMemo().search)
         # A wavelet file aims the first encoding (none where it would be the file itself).
-        probe = None if self.options.transform == "wavelet" else partial(_probe, encode_at, bpp)
+        plain = partial(self.encode_at, candidate)  # the probe's wavelet file: no geometry to reuse
+        probe = None if self.options.transform == "wavelet" else partial(_probe, plain, bpp)
         found = ratecontrol.for_size(
             encode_at,
             target,

@@ -48,8 +48,8 @@ unrounded coefficients; BENCHMARKS.md, "Loop filter", has the files' figures and
 
 Written here because the filter is a handful of compiled loops over the image (scipy's
 ``correlate`` would need a pass per tap and a copy per shifted channel, and clips nothing); the
-normal equations are numpy's products of the features, the least squares of at most 20 unknowns
-numpy's solve.
+normal equations are compiled products of the features (single-threaded, :func:`_gram`), the
+least squares of at most 36 unknowns numpy's solve.
 """
 
 from __future__ import annotations
@@ -186,8 +186,8 @@ def _normal_equations(x, residual, table, bound, stride, folded):
     """``gram[c] = A_c' A_c`` and ``moment[c] = A_c' residual_c``, shapes (C, n, n) and (C, n),
     with ``A_c`` the features of channel ``c`` of ``x`` at the pixels of every ``stride``-th row
     (``residual``: the target minus ``x`` at those rows, shape (C, rows, W)), scaled as if from
-    every row: products of ``A_c'`` and the residual by their transpose, a block of rows at a time
-    (:data:`_BLOCK` pixels)."""
+    every row: products of ``A_c'`` and the residual by their transpose (:func:`_gram`), a block of
+    rows at a time (:data:`_BLOCK` pixels)."""
     channels, rows, cols = x.shape
     n = len(table)
     block = max(1, _BLOCK // cols)  # sampled rows a block
@@ -200,35 +200,43 @@ def _normal_equations(x, residual, table, bound, stride, folded):
                 x, c, table, bound, first * stride, min(rows, (first + block) * stride), stride, f, folded
             )
             f[n, :count] = residual[c, first : first + block].ravel()
-            if n < _BLAS_ROWS:
-                total[c] += f[:, :count] @ f[:, :count].T
-            else:
-                _gram(f, count, total[c])
+            _gram(f, count, total[c])
     return total[:, :n, :n] * stride, total[:, :n, n] * stride
-
-
-#: Rows of features (taps and the residual) up to which numpy's product makes the normal
-#: equations: OpenBLAS runs the products of 33 to 47 rows (the 7 x 7 square with the 5 x 5 of the
-#: other channel: 37) on several threads, which stall on a loaded machine (0.7 s for the 0.14 s
-#: of one thread on the 2-core machine), while it keeps those of up to 32 on one (0.04 s).
-_BLAS_ROWS = 32
 
 
 @njit(cache=True, nogil=True, fastmath=True)
 def _gram(f, count, out):
-    """``out += f[:, :count] f[:, :count]'``, compiled: the normal equations of more than
-    :data:`_BLAS_ROWS` rows (only the square shapes', at one clipping)."""
+    """``out += f[:, :count] f[:, :count]'`` (``out`` symmetric), compiled and single-threaded.
+
+    Not numpy's product: OpenBLAS runs it on its own threads, which stall on a loaded machine (a
+    block of 37 rows, the 7 x 7 square and the other channel's 5 x 5: 15 ms, for 1.4 ms in one
+    thread, on the 2-core machine shared, issue 36). Two rows by two at a time (four sums from
+    four loads): as fast as one thread of OpenBLAS, 0.04 to 0.8 ms a block of 7 to 37 rows
+    (0.05 to 1.8 ms row by row)."""
     n = f.shape[0]
-    for i in range(n):
-        a = f[i]
-        for j in range(i, n):
-            b = f[j]
-            s = 0.0
+    for i in range(0, n, 2):
+        i2 = min(i + 1, n - 1)  # the last row of an odd count is paired with itself
+        a, a2 = f[i], f[i2]
+        for j in range(i, n, 2):
+            j2 = min(j + 1, n - 1)
+            b, b2 = f[j], f[j2]
+            s11 = s12 = s21 = s22 = 0.0
             for k in range(count):
-                s += a[k] * b[k]
-            out[i, j] += s
-            if j != i:
-                out[j, i] += s
+                s11 += a[k] * b[k]
+                s12 += a[k] * b2[k]
+                s21 += a2[k] * b[k]
+                s22 += a2[k] * b2[k]
+            # The upper triangle, each entry once.
+            out[i, j] += s11
+            if j2 != j:
+                out[i, j2] += s12
+            if i2 != i and j >= i2:
+                out[i2, j] += s21
+            if i2 != i and j2 != j:
+                out[i2, j2] += s22
+    for i in range(n):
+        for j in range(i + 1, n):
+            out[j, i] = out[i, j]
 
 
 #: Pixels of a block of the normal equations (:func:`_normal_equations`): 1.4 MB of features.
