@@ -17,7 +17,7 @@ from ..format.fields import (
     WAVELETS,
 )
 from . import deliver
-from .cliopts import memory_size, natural_int, positive_float, positive_int
+from .cliopts import effort_level, memory_size, natural_int, positive_float, positive_int
 
 __all__ = ["FORMATS", "UsageError", "build_parser"]
 
@@ -149,6 +149,15 @@ def _add_encode(sub) -> None:
         help="code an image with a side above N pixels in independent tiles of about N x N, two at a time "
         "(bounded memory at any size, a region decodes alone; default: tiles of 512 only for an image "
         "that would not fit --max-memory in one piece)",
+    )
+    p.add_argument(
+        "--effort",
+        type=effort_level,
+        default=7,
+        metavar="N",
+        help="how much the encoder tries, 1 (fastest) to 9 (default 7: every search; below 7 the estimates "
+        "choose among directions, the Riesz pair and the count of levels without encoding the runners-up, "
+        "below 5 no loop filter); the file's format is the same",
     )
     deliver.add_green_option(p, decoding=False)
     _common(p)

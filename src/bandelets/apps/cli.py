@@ -108,6 +108,7 @@ def _encode(args) -> None:
         riesz=args.riesz,
         tile=args.tile,
         lossless=True if args.lossless else False if args.no_lossless else None,
+        effort=args.effort,
     )
     encoded = encode_with_stats(array, options, **target, measured=not args.quiet)
     if args.green == "down":

@@ -12,7 +12,15 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["positive_float", "positive_int", "natural_int", "memory_size", "rate_list", "MAX_MEMORY_BYTES"]
+__all__ = [
+    "MAX_MEMORY_BYTES",
+    "effort_level",
+    "memory_size",
+    "natural_int",
+    "positive_float",
+    "positive_int",
+    "rate_list",
+]
 
 #: Largest ``--max-memory`` accepted: 2**50 bytes (1 PiB), far above any machine, and an ``int``
 #: every computation with it keeps exact.
@@ -42,6 +50,14 @@ def positive_int(text: str) -> int:
     value = _integer(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
+
+
+def effort_level(text: str) -> int:
+    """An encoder's effort, a whole number from 1 to 9 (``--effort``)."""
+    value = _integer(text)
+    if not 1 <= value <= 9:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 1 to 9, got {text!r}")
     return value
 
 

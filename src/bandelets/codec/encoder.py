@@ -23,7 +23,7 @@ from ..search.lagrangian import LAMBDA
 from . import normalmaps, tile_encoder
 from .at_threshold import Encoded
 from .decoder import decode
-from .options import AUTO_WAVELET, EncodeOptions
+from .options import AUTO_WAVELET, LOOP_FILTER_FROM, EncodeOptions
 from .piece import encode_piece
 
 __all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats"]
@@ -128,6 +128,8 @@ def encode_with_stats(
         if fitted is not None:
             return fitted
         options = replace(options, lossless=False)
+    if options.effort < LOOP_FILTER_FROM:
+        options = replace(options, loop_filter=False)
     if options.wavelet == AUTO_WAVELET:
         return _best_of_wavelets(array, options, measured=measured, **targets)
     if tile_encoder.tiled(array, options):

@@ -30,11 +30,29 @@ from ..format.fields import (
 )
 from ..transform.wavelets import check_extension
 
-__all__ = ["AUTO_WAVELET", "EncodeOptions", "geometry_options"]
+__all__ = [
+    "AUTO_WAVELET",
+    "DEFAULT_EFFORT",
+    "LOOP_FILTER_FROM",
+    "TRIALS_FROM",
+    "EncodeOptions",
+    "geometry_options",
+]
 
 #: The ``wavelet`` that lets the encoder choose, per image and target, among
 #: :data:`bandelets.codec.encoder.AUTO_CANDIDATES`.
 AUTO_WAVELET = "auto"
+
+
+#: The encoder's effort, from 1 (fastest) to 9, as ``cjxl -e`` and ``avifenc --speed`` have one: the
+#: format does not change with it, only how much the encoder tries. The default keeps every search.
+DEFAULT_EFFORT = 7
+#: Effort from which a rate target also encodes the alternatives whose estimate is close to paying
+#: (directions, a Riesz pair, a second count of levels: :mod:`bandelets.codec.alternatives`) and keeps
+#: the better file; below it the estimates decide alone, in one rate-control loop.
+TRIALS_FROM = 7
+#: Effort from which the encoder fits a loop filter (:mod:`bandelets.search.filterfit`).
+LOOP_FILTER_FROM = 5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -120,6 +138,11 @@ class EncodeOptions:
         (:data:`RIESZ_PAYS_BELOW`), or under a rate target where it nearly does, both files and
         the better kept (:data:`RIESZ_TRIAL_BELOW`), up to :data:`TRIAL_PIXELS` pixels and with
         cdf97. True: always (a Riesz pair is not lifted along directions); False: never.
+    effort : int
+        How much the encoder tries, from 1 to 9 (default :data:`DEFAULT_EFFORT`, every search): below
+        :data:`TRIALS_FROM` a rate target makes one rate-control loop on the alternative the
+        estimates choose (no trial of the runners-up), below :data:`LOOP_FILTER_FROM` no loop filter
+        is fitted. The file's format is the same at every effort.
     mesh_vertices : int
         The vertex count of the mesh a geometry image was sampled from, which
         :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).
@@ -153,6 +176,7 @@ class EncodeOptions:
     tile: int = 0
     lossless: bool | None = None
     riesz: bool | None = None
+    effort: int = DEFAULT_EFFORT
 
     def __post_init__(self) -> None:
         if self.lossless not in (None, True, False):
@@ -168,6 +192,8 @@ class EncodeOptions:
         object.__setattr__(self, "kind", Kind(self.kind))  # the string turned into its type once, here
         if self.xy and self.kind != Kind.NORMAL_MAP:
             raise ValueError("xy applies to normal maps only")
+        if not (isinstance(self.effort, (int, np.integer)) and 1 <= self.effort <= 9):
+            raise ValueError(f"effort must be a whole number from 1 to 9, got {self.effort!r}")
         if self.riesz not in (None, True, False):
             raise ValueError(f"riesz must be None, True or False, got {self.riesz!r}")
         if self.riesz and self.kind != Kind.NORMAL_MAP:

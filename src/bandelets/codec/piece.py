@@ -47,7 +47,7 @@ from .alternatives import (
 )
 from .at_threshold import Encoded, encode_at_threshold
 from .decoder import decode_parsed, decoded_bins
-from .options import EncodeOptions
+from .options import TRIALS_FROM, EncodeOptions
 from .plan import plan_image
 from .restoring import squared_error_of, with_loop_filter, with_restoration
 
@@ -181,7 +181,7 @@ class _PieceEncoder:
         the source is let go of where it is not measured again (one large array at a time: the
         peak of large images)."""
         plan, options, candidate = self.plan, self.options, self.candidate
-        tries = tries and plan.height * plan.width <= TRIAL_PIXELS
+        tries = tries and plan.height * plan.width <= TRIAL_PIXELS and options.effort >= TRIALS_FROM
         trials: list[Candidate] = []
         if candidate.lifting_levels and t is not None:
             coefficients, fields, lifting_levels, trial = lifted(

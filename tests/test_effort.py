@@ -1,0 +1,68 @@
+"""The encoder's effort (issue 36): the same format at every effort; below TRIALS_FROM one rate-control
+loop on what the estimates choose, below LOOP_FILTER_FROM no loop filter."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import imagecodecs
+import pytest
+
+import bandelets
+from bandelets.apps.cli import main
+from bandelets.codec import piece
+from bandelets.codec.options import LOOP_FILTER_FROM, TRIALS_FROM
+from bandelets.format.header import unpack
+
+REAL = (
+    Path(__file__).resolve().parents[2] / "shared" / "data" / "normal-maps" / "godot_scifi_vent_decal_512.png"
+)
+
+
+@pytest.fixture(scope="module")
+def vent():
+    if not REAL.exists():
+        pytest.skip(f"shared real map absent: {REAL}")
+    return imagecodecs.imread(REAL)[..., :3]
+
+
+def _loops(monkeypatch, x, effort):
+    """The rate-control loops an encode of ``x`` at 1 bpp makes, and its file."""
+    loops = []
+    search = piece._PieceEncoder._search_size
+
+    def counted(self, candidate, *args):
+        loops.append(candidate)
+        return search(self, candidate, *args)
+
+    monkeypatch.setattr(piece._PieceEncoder, "_search_size", counted)
+    return loops, bandelets.encode(x, bpp=1.0, kind="normal-map", effort=effort)
+
+
+def test_below_trials_from_a_rate_target_makes_one_loop(monkeypatch, vent):
+    tried, full = _loops(monkeypatch, vent, TRIALS_FROM)
+    once, fast = _loops(monkeypatch, vent, TRIALS_FROM - 1)
+    assert len(tried) >= 2  # the real map's Riesz pair is close to paying: both files are tried
+    assert len(once) == 1
+    assert 0.97 * 512 * 512 / 8 <= len(fast) <= 512 * 512 / 8  # the same target, met alike
+
+
+def test_below_loop_filter_from_no_filter_is_written(vent):
+    with_filter = unpack(bandelets.encode(vent, bpp=1.0, kind="normal-map"))[0]
+    without = unpack(bandelets.encode(vent, bpp=1.0, kind="normal-map", effort=LOOP_FILTER_FROM - 1))[0]
+    assert with_filter.loop_filter is not None
+    assert without.loop_filter is None
+
+
+@pytest.mark.parametrize("effort", [0, 10, 7.5, "7"])
+def test_an_effort_out_of_range_is_refused(effort):
+    with pytest.raises(ValueError, match="effort must be a whole number from 1 to 9"):
+        bandelets.EncodeOptions(effort=effort)
+
+
+@pytest.mark.parametrize("value", ["0", "10", "nan", "7.5"])
+def test_the_command_line_refuses_an_effort_out_of_range(tmp_path, capsys, value):
+    status = main(["encode", str(tmp_path / "in.png"), str(tmp_path / "out.bdl"), "--effort", value])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and "--effort" in err[0]
+    assert not (tmp_path / "out.bdl").exists()
