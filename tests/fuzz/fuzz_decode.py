@@ -39,7 +39,7 @@ import atheris
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/, for headerints
-from headerints import leb128, read_integers  # noqa: E402
+from headerints import integer_count, leb128, read_integers  # noqa: E402
 
 
 def _import_compiled_modules() -> None:
@@ -115,17 +115,17 @@ def test_one_input(body: bytes) -> None:
 
 
 def repair_lengths(body: bytes) -> bytes:
-    """``body`` with the third stream length (the fifth LEB128 integer of the header) fitted to
-    its size, when it can be."""
+    """``body`` with its last segment length (the header's last LEB128 integer, format version 19:
+    :func:`headerints.integer_count` of them) fitted to its size, when it can be."""
     try:
         start = streams_offset(body)
     except FormatError:
         return body
-    values, at = read_integers(body, 14, 5)  # which streams_offset found well formed
-    c = len(body) - start - values[2] - values[3]  # the same whatever bytes its integer takes
-    if c < 0:
+    values, at = read_integers(body, 14, integer_count(body))  # which streams_offset found well formed
+    last = len(body) - start - sum(values[2:-1])  # the same whatever bytes its integer takes
+    if last < 0:
         return body
-    return body[: at - len(leb128(values[4]))] + leb128(c) + body[at:]
+    return body[: at - len(leb128(values[-1]))] + leb128(last) + body[at:]
 
 
 def custom_mutator(data: bytes, max_size: int, seed: int) -> bytes:
