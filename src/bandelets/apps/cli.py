@@ -395,9 +395,9 @@ def _chart_image(args, mesh) -> bool:
     """The multi-chart image and report of a mesh the spherical path refuses (False if it takes it)."""
     from ..io.files import write_array
     from ..surfaces.chartcodec import chart_report
-    from ..surfaces.codec import _genus0
+    from ..surfaces.codec import is_genus0
 
-    if _genus0(mesh):
+    if is_genus0(mesh):
         return False
     if args.normals:
         raise ValueError("--normals needs a closed genus-0 mesh (a spherical geometry image)")

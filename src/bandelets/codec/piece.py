@@ -78,9 +78,9 @@ def encode_piece(
     encode's last pass, :mod:`bandelets.codec.tile_encoder`).
     """
     with Progress(options.progress) as line:
-        piece = _PieceEncoder(array, options, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle)
-        piece.line, piece.measured = line, measured
-        piece.keep = measured or max_angle is not None
+        piece = _PieceEncoder(
+            array, options, line, measured, bpp=bpp, threshold=threshold, psnr=psnr, max_angle=max_angle
+        )
         if unrestored is not None:
             piece.choose(None)
             return piece.finish(_read_back(unrestored))
@@ -109,13 +109,25 @@ class _Measures:
 class _PieceEncoder:
     """The state of one piece's encoding: its plan and candidate, the source while it is measured."""
 
-    def __init__(self, array, options: EncodeOptions, *, bpp, threshold, psnr, max_angle) -> None:
-        self.options = options
+    def __init__(
+        self,
+        array,
+        options: EncodeOptions,
+        line: Progress,
+        measured: bool,
+        *,
+        bpp,
+        threshold,
+        psnr,
+        max_angle,
+    ) -> None:
+        self.options, self.line, self.measured = options, line, measured
+        # The decoded image is kept for the caller (measured) or the angular target.
+        self.keep = measured or max_angle is not None
         self.plan, x, self.coded = plan_image(array, options)
         del array
         plan = self.plan
-        self.line: Progress | None = None
-        self.measured = self.keep = False
+        self._psnr = None  # the measure against the reference, made when first needed
         self.measures = _Measures()
         self.candidate = Candidate(
             wavelet_coefficients(self.coded, options.wavelet, plan.levels, options.extension),
@@ -292,7 +304,7 @@ class _PieceEncoder:
 
     def measure(self, decoded: np.ndarray) -> float:
         """PSNR of a decoded image as written at the source's depth (its reference copied once)."""
-        if not hasattr(self, "_psnr"):
+        if self._psnr is None:
             self._psnr = metrics.psnr_against(self.reference, self.options.kind)
         return self._psnr(as_read(decoded, self.options.kind, self.plan.depth))
 

@@ -152,8 +152,9 @@ def _coded_tile(
     earlier = None if unrestored is None else Encoded(unrestored.data, t, unrestored.coefficient_sse)
     # Each tile's share of max_work, by its pixels: the restoration of the whole file is bounded
     # as that of one piece is (and as the decoder checks it), not max_work once per tile.
-    fixed = len(grid.boxes) * TILE_WORK
-    share = (options.max_work - fixed) * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
+    # max_work less the tiles' fixed work, as the decoder counts it (TILE_WORK).
+    left = options.max_work - len(grid.boxes) * TILE_WORK
+    share = left * tile.shape[0] * tile.shape[1] // (grid.height * grid.width)
     encoded = encode_piece(
         tile,
         replace(tile_options, restore=restore, max_work=share),

@@ -30,6 +30,7 @@ __all__ = [
     "AUTO_SIZES",
     "DEFAULT_SIZE",
     "GeometryImage",
+    "is_genus0",
     "SphericalMesh",
     "auto_size",
     "check_mesh_memory",
@@ -291,7 +292,7 @@ def encode_mesh(
     for name, value in targets.items():
         if value is not None and not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
-    by_charts = image is None and spherical is None and not _genus0(mesh)
+    by_charts = image is None and spherical is None and not is_genus0(mesh)
     if by_charts:
         from .chartcodec import check_surface
 
@@ -343,7 +344,7 @@ def encode_mesh(
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
-def _genus0(mesh) -> bool:
+def is_genus0(mesh) -> bool:
     """Whether the spherical path takes ``mesh`` (closed, manifold, connected, genus 0)."""
     try:
         checks.check_genus0(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
