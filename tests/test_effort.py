@@ -1,5 +1,6 @@
-"""The encoder's effort (issue 36): the same format at every effort; below TRIALS_FROM one rate-control
-loop on what the estimates choose, below LOOP_FILTER_FROM no loop filter."""
+"""The encoder's effort (issue 36): the same format at every effort; from FULL_TRIALS_FROM a rate-control
+loop per alternative tried, from TRIALS_FROM one loop on the alternative of least cost at one threshold,
+below it one loop on what the estimates choose; below LOOP_FILTER_FROM no loop filter."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 import bandelets
 from bandelets.apps.cli import main
 from bandelets.codec import piece
-from bandelets.codec.options import LOOP_FILTER_FROM, TRIALS_FROM
+from bandelets.codec.options import FULL_TRIALS_FROM, LOOP_FILTER_FROM, TRIALS_FROM
 from bandelets.format.header import unpack
 
 REAL = (
@@ -27,24 +28,33 @@ def vent():
 
 
 def _loops(monkeypatch, x, effort):
-    """The rate-control loops an encode of ``x`` at 1 bpp makes, and its file."""
-    loops = []
-    search = piece._PieceEncoder._search_size
+    """The rate-control loops an encode of ``x`` at 1 bpp makes, the alternatives it weighed at one
+    threshold, and its file."""
+    loops, weighed = [], []
+    search, cheapest = piece._PieceEncoder._search_size, piece._PieceEncoder._cheapest
 
     def counted(self, candidate, *args):
         loops.append(candidate)
         return search(self, candidate, *args)
 
+    def compared(self, candidate, trials, t):
+        weighed.append(1 + len(trials))
+        return cheapest(self, candidate, trials, t)
+
     monkeypatch.setattr(piece._PieceEncoder, "_search_size", counted)
-    return loops, bandelets.encode(x, bpp=1.0, kind="normal-map", effort=effort)
+    monkeypatch.setattr(piece._PieceEncoder, "_cheapest", compared)
+    return loops, weighed, bandelets.encode(x, bpp=1.0, kind="normal-map", effort=effort)
 
 
-def test_below_trials_from_a_rate_target_makes_one_loop(monkeypatch, vent):
-    tried, full = _loops(monkeypatch, vent, TRIALS_FROM)
-    once, fast = _loops(monkeypatch, vent, TRIALS_FROM - 1)
-    assert len(tried) >= 2  # the real map's Riesz pair is close to paying: both files are tried
-    assert len(once) == 1
-    assert 0.97 * 512 * 512 / 8 <= len(fast) <= 512 * 512 / 8  # the same target, met alike
+def test_each_effort_tries_the_alternatives_as_documented(monkeypatch, vent):
+    loops, weighed, full = _loops(monkeypatch, vent, FULL_TRIALS_FROM)
+    assert len(loops) >= 2 and not weighed  # the real map's Riesz pair is close to paying: both files
+    loops, weighed, picked = _loops(monkeypatch, vent, TRIALS_FROM)
+    assert len(loops) == 1 and weighed and weighed[0] >= 2  # weighed at one threshold, one loop
+    loops, weighed, fast = _loops(monkeypatch, vent, TRIALS_FROM - 1)
+    assert len(loops) == 1 and not weighed
+    for data in (full, picked, fast):  # the same target, met alike
+        assert 0.97 * 512 * 512 / 8 <= len(data) <= 512 * 512 / 8
 
 
 def test_below_loop_filter_from_no_filter_is_written(vent):

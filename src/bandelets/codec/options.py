@@ -33,6 +33,7 @@ from ..transform.wavelets import check_extension
 __all__ = [
     "AUTO_WAVELET",
     "DEFAULT_EFFORT",
+    "FULL_TRIALS_FROM",
     "LOOP_FILTER_FROM",
     "TRIALS_FROM",
     "EncodeOptions",
@@ -45,12 +46,17 @@ AUTO_WAVELET = "auto"
 
 
 #: The encoder's effort, from 1 (fastest) to 9, as ``cjxl -e`` and ``avifenc --speed`` have one: the
-#: format does not change with it, only how much the encoder tries. The default keeps every search.
+#: format does not change with it, only how much the encoder tries.
 DEFAULT_EFFORT = 7
-#: Effort from which a rate target also encodes the alternatives whose estimate is close to paying
-#: (directions, a Riesz pair, a second count of levels: :mod:`bandelets.codec.alternatives`) and keeps
-#: the better file; below it the estimates decide alone, in one rate-control loop.
+#: Effort from which a rate target also tries the alternatives whose estimate is close to paying
+#: (directions, a Riesz pair, a second count of levels: :mod:`bandelets.codec.alternatives`): each
+#: coded once as a wavelet file at the first threshold, the one of least Lagrangian cost kept for
+#: the rate-control loop. Below it the estimates decide alone.
 TRIALS_FROM = 7
+#: Effort from which each alternative tried gets a rate-control loop of its own, its whole file
+#: restored and measured, and the better file is kept (three loops instead of one on the real maps
+#: whose Riesz pair is close to paying: the slowest, and what the default was before issue 36).
+FULL_TRIALS_FROM = 8
 #: Effort from which the encoder fits a loop filter (:mod:`bandelets.search.filterfit`).
 LOOP_FILTER_FROM = 5
 
@@ -139,10 +145,12 @@ class EncodeOptions:
         the better kept (:data:`RIESZ_TRIAL_BELOW`), up to :data:`TRIAL_PIXELS` pixels and with
         cdf97. True: always (a Riesz pair is not lifted along directions); False: never.
     effort : int
-        How much the encoder tries, from 1 to 9 (default :data:`DEFAULT_EFFORT`, every search): below
-        :data:`TRIALS_FROM` a rate target makes one rate-control loop on the alternative the
-        estimates choose (no trial of the runners-up), below :data:`LOOP_FILTER_FROM` no loop filter
-        is fitted. The file's format is the same at every effort.
+        How much the encoder tries, from 1 to 9 (default :data:`DEFAULT_EFFORT`): from
+        :data:`FULL_TRIALS_FROM` a rate target encodes each alternative close to paying through a
+        rate-control loop of its own and keeps the better file; from :data:`TRIALS_FROM` it picks
+        among them from one wavelet file of each at one threshold; below, the estimates choose
+        alone; below :data:`LOOP_FILTER_FROM` no loop filter is fitted. The file's format is the
+        same at every effort.
     mesh_vertices : int
         The vertex count of the mesh a geometry image was sampled from, which
         :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).

@@ -30,6 +30,7 @@ from ..restore import loopfilter
 from ..runtime.progress import Progress
 from ..search import ratecontrol
 from ..search.basis import best_trees
+from ..search.lagrangian import LAMBDA
 from ..search.levelchoice import levels_to_try
 from ..search.treememo import TreeMemo
 from ..transform import normals
@@ -47,7 +48,7 @@ from .alternatives import (
 )
 from .at_threshold import Encoded, encode_at_threshold
 from .decoder import decode_parsed, decoded_bins
-from .options import TRIALS_FROM, EncodeOptions
+from .options import FULL_TRIALS_FROM, TRIALS_FROM, EncodeOptions
 from .plan import plan_image
 from .restoring import squared_error_of, with_loop_filter, with_restoration
 
@@ -129,6 +130,8 @@ class _PieceEncoder:
         plan = self.plan
         self._psnr = None  # the measure against the reference, made when first needed
         self.measures = _Measures()
+        #: The threshold and wavelet file of the candidate :meth:`_cheapest` chose.
+        self.probed: tuple[float, Encoded] | None = None
         self.candidate = Candidate(
             wavelet_coefficients(self.coded, options.wavelet, plan.levels, options.extension),
             plan.levels,
@@ -219,9 +222,32 @@ class _PieceEncoder:
                 trials.append(Candidate(pair, levels, turn=sign))
             del pair
         self.coded = None
+        if trials and t is not None and options.effort < FULL_TRIALS_FROM:
+            candidate, trials = self._cheapest(candidate, trials, t), []
         self.candidate = candidate
         self._make_measures()
         return candidate, trials
+
+    def _cheapest(self, candidate: Candidate, trials: list[Candidate], t: float) -> Candidate:
+        """Of ``candidate`` and its ``trials``, the one whose wavelet file at ``t`` has the least
+        Lagrangian cost ``error + LAMBDA t**2 bits`` (the basis search's, at the slope the rate
+        target's threshold gives): a coded size and a quantization error each, 0.1 s at 512 x 512
+        instead of a rate-control loop with its restoration (0.8 to 1.2 s). It picks what the loops
+        pick but where they differ by 0.1 dB or less on the real maps (``benchmarks/trial_choice.py``).
+        """
+
+        files = {}
+
+        def cost(choice: Candidate) -> float:
+            files[id(choice)] = encoded = self.encode_at(choice, t, "wavelet")
+            return encoded.coefficient_sse + LAMBDA * t * t * 8 * len(encoded.data)
+
+        best = min([candidate, *trials], key=cost)
+        # Rate control's probe is often this very file (its first threshold is ``t``).
+        self.probed = (t, files[id(best)])
+        if best.turn and not candidate.turn:
+            self.t_max = raised_t_max(best.coefficients, self.t_max)
+        return best
 
     def _make_measures(self) -> None:
         plan, options, reference, kind = self.plan, self.options, self.reference, self.options.kind
@@ -341,7 +367,7 @@ class _PieceEncoder:
         # The loop's later encodes reuse the geometry of its first (bandelets.search.treememo).
         encode_at = partial(self.encode_at, candidate, search=TreeMemo().search)
         # A wavelet file aims the first encoding (none where it would be the file itself).
-        plain = partial(self.encode_at, candidate)  # the probe's wavelet file: no geometry to reuse
+        plain = partial(self._wavelet_file, candidate)  # the probe's: no geometry to reuse
         probe = None if self.options.transform == "wavelet" else partial(_probe, plain, bpp)
         found = ratecontrol.for_size(
             encode_at,
@@ -354,6 +380,12 @@ class _PieceEncoder:
             probe=probe,
         )
         return self.finish(found, budget=target)
+
+    def _wavelet_file(self, candidate: Candidate, t: float, transform: str) -> Encoded:
+        """The wavelet file of ``candidate`` at ``t``: the one :meth:`_cheapest` made, if at ``t``."""
+        if self.probed is not None and math.isclose(self.probed[0], t, rel_tol=1e-9):
+            return self.probed[1]
+        return self.encode_at(candidate, t, transform)
 
     def for_quality(self, *, psnr: float | None, max_angle: float | None) -> Encoded:
         """The smallest file whose restored image meets a PSNR or a p99 angular error."""
