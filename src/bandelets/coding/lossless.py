@@ -375,14 +375,16 @@ def estimated_bytes(samples: np.ndarray, depth: int, normals: bool = False) -> f
         coder = Coder(N_CONTEXTS)
         _run(coder, x, depth, False, normals and samples.shape[2] == 3, None)
         return float(len(coder.finish()))
+    bands = [
+        (start, min(start + _SAMPLED_ROWS, height))
+        for start in range(0, height, _SAMPLED_ROWS * _SAMPLED_EVERY)
+    ]
+    sampled = np.concatenate([samples[start:stop] for start, stop in bands])
+    unit = normals and samples.shape[2] == 3 and _unit_pays(sampled, depth)
     coder = Coder(N_CONTEXTS)
-    unit = normals and samples.shape[2] == 3 and _unit_pays(samples, depth)
-    coded = 0
-    for start in range(0, height, _SAMPLED_ROWS * _SAMPLED_EVERY):
-        stop = min(start + _SAMPLED_ROWS, height)
-        _run(coder, x, depth, False, unit, None, (start, stop))
-        coded += stop - start
-    return len(coder.finish()) * height / coded
+    for band in bands:
+        _run(coder, x, depth, False, unit, None, band)
+    return len(coder.finish()) * height / len(sampled)
 
 
 def _unit_pays(samples: np.ndarray, depth: int) -> bool:
