@@ -35,12 +35,11 @@ IMAGE_SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff", ".jpg", ".jpeg", ".we
 def _working(quiet: bool = False) -> None:
     """Called by each command once its arguments are checked, before the codec loads: from here
     on numba may compile the kernels, and :func:`bandelets.runtime.compilation.announce` says so, unless
-    ``-q`` asks for silence, as gzip's does (numba itself takes a third of a second to import:
-    not for an argument error)."""
-    if not quiet:
-        from ..runtime.compilation import announce
+    ``-q`` asks for silence, as gzip's does, and compiles the decoder's in a second process
+    meanwhile (numba itself takes a third of a second to import: not for an argument error)."""
+    from ..runtime.compilation import announce
 
-        announce()
+    announce(quiet=quiet, warm=True)
 
 
 def _check_input(path: str) -> None:

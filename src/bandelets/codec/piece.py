@@ -232,9 +232,8 @@ class _PieceEncoder:
         """Of ``candidate`` and its ``trials``, the one whose wavelet file at ``t`` has the least
         Lagrangian cost ``error + LAMBDA t**2 bits`` (the basis search's, at the slope the rate
         target's threshold gives): a coded size and a quantization error each, 0.1 s at 512 x 512
-        instead of a rate-control loop with its restoration (0.8 to 1.2 s). It picks what the loops
-        pick but where they differ by 0.1 dB or less on the real maps (``benchmarks/trial_choice.py``).
-        """
+        instead of a rate-control loop with its restoration (0.8 to 1.2 s). Effort 8 keeps the loops
+        (``benchmarks/effort.py --all`` compares the two)."""
 
         files = {}
 
@@ -335,8 +334,9 @@ class _PieceEncoder:
         return self._psnr(as_read(decoded, self.options.kind, self.plan.depth))
 
     def for_size(self, bpp: float) -> Encoded:
-        """The best file of at most ``bpp`` bits per pixel: rate control on the candidate chosen,
-        then on each one close to paying, the better file kept."""
+        """The best file of at most ``bpp`` bits per pixel: rate control on the candidate chosen
+        (:meth:`choose`), then, from effort :data:`FULL_TRIALS_FROM`, on each one close to paying,
+        the better file kept."""
         options = self.options
         target = self._target_bytes(bpp)
         if target < HEADER_BYTES:
