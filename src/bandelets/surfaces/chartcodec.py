@@ -43,6 +43,7 @@ Version 1's charts and layout are those of :func:`.charts.region_charts` and
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 
 import numpy as np
@@ -53,7 +54,7 @@ from ..codec.encoder import encode_with_stats
 from ..codec.options import EncodeOptions
 from ..format.fields import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY
 from ..format.header import unpack
-from . import atlas, charts, checks, draco
+from . import atlas, charts, checks, draco, repair
 
 __all__ = [
     "DRACO_ONLY",
@@ -64,6 +65,7 @@ __all__ = [
     "chart_report",
     "check_surface",
     "decode_charts",
+    "describe",
     "encode_charts",
     "is_chart_file",
 ]
@@ -101,14 +103,21 @@ def chart_side(n_vertices: int) -> int:
     return int(np.clip(side, 8, 4096))
 
 
-def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices and faces of a mesh the chart route can code, unused vertices dropped.
+def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray, repair.Split]:
+    """The vertices and faces of a mesh the chart route can code, unused vertices dropped and
+    non-manifold edges and pinched vertices split into manifold pieces (:mod:`.repair`).
+
+    Returns
+    -------
+    vertices, faces : ndarray
+    split : repair.Split
+        What was split (nothing on a manifold mesh).
 
     Raises
     ------
     ValueError
         One line naming what is wrong: no faces, non-finite coordinates, a single triangle,
-        faces repeating a vertex, triangles of zero area, an edge on more than two faces.
+        faces repeating a vertex, triangles of zero area, an edge that no split makes manifold.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -127,21 +136,27 @@ def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     )
     if repeated.size:
-        raise ValueError(f"{_faces(repeated.size)} repeat a vertex (degenerate; first: face {repeated[0]})")
+        verb = "repeats" if repeated.size == 1 else "repeat"
+        raise ValueError(f"{_faces(repeated.size)} {verb} a vertex (degenerate; first: face {repeated[0]})")
     flat = np.flatnonzero(checks.flat_triangles(vertices, faces))
     if flat.size:
         raise ValueError(
             f"{_faces(flat.size)} of zero area (degenerate; first: face {flat[0]}); remove or repair them"
         )
-    edges, counts = checks.edge_face_counts(faces)
-    if np.any(counts > 2):
-        a, b = edges[np.argmax(counts > 2)]
+    used, compact = np.unique(faces, return_inverse=True)
+    vertices, split_faces, split = repair.manifold_pieces(vertices[used], compact.reshape(-1, 3))
+    edges, counts = checks.edge_face_counts(split_faces)
+    if np.any(counts > 2):  # faces joined round both ends of the edge: no split frees them
+        origin = np.empty(len(vertices), np.int64)
+        origin[split_faces.ravel()] = faces.ravel()
+        a, b = origin[edges[np.argmax(counts > 2)]]
         raise ValueError(
-            f"non-manifold edge between vertices {a} and {b} (on {counts.max()} faces or more); "
-            "split the mesh into manifold pieces first"
+            f"non-manifold edge between vertices {a} and {b} (on {counts.max()} faces or more) that "
+            "splitting at its ends does not free; repair the mesh first"
         )
-    used, faces = np.unique(faces, return_inverse=True)
-    return vertices[used], faces.reshape(-1, 3)
+    if split.first_edge is not None:  # named by the input's vertex numbers
+        split = dataclasses.replace(split, first_edge=tuple(int(used[k]) for k in split.first_edge))
+    return vertices, split_faces, split
 
 
 def _faces(n: int) -> str:
@@ -176,8 +191,6 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     edge); its order does not depend on the positions' bits, so a fine encoding tells where
     each of the stream's vertices came from.
     """
-    from scipy.spatial import cKDTree
-
     module = draco._module()
 
     def once(points: np.ndarray, bits: int):
@@ -203,14 +216,23 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     carrier[:, 0] = np.arange(len(vertices)) * 1e-7
     carrier[-1] = 1.0
     stream, carried, _ = once(carrier, CARRIER_BITS)
-    _, ordered, points = once(vertices, ORDER_BITS)
-    if not np.array_equal(carried, ordered) or len(points) != len(vertices) or len(ordered) != len(faces):
+    # Each vertex's number written in its position (base 1024 over the three axes, exact at
+    # ORDER_BITS bits): the decoded positions name the vertices even where the mesh has several
+    # at one place (the copies of a split non-manifold vertex).
+    index = np.arange(len(vertices))
+    digits = np.column_stack([index % 1024, (index // 1024) % 1024, index // 1024**2]).astype(np.float64)
+    _, ordered, points = once(digits, ORDER_BITS)
+    source = np.rint(points) @ np.array([1, 1024, 1024**2])
+    if (
+        not np.array_equal(carried, ordered)
+        or len(ordered) != len(faces)
+        or not np.array_equal(np.sort(source), index)
+    ):
         raise ValueError(
-            "the mesh has pinched (non-manifold) vertices or faces that cannot be oriented consistently "
-            "(a non-orientable surface); repair it first"
+            "the mesh has faces that cannot be oriented consistently (a non-orientable surface, "
+            "such as a Moebius strip); repair it first"
         )
-    source = cKDTree(vertices).query(points)[1]
-    return stream, ordered, vertices[source]
+    return stream, ordered, vertices[source.astype(np.int64)]
 
 
 def encode_charts(
@@ -249,7 +271,7 @@ def encode_charts(
     """
     import trimesh
 
-    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     checks.check_memory(len(faces), max_memory)
     oriented = trimesh.Trimesh(vertices, faces, process=False)
     trimesh.repair.fix_winding(oriented)  # Edgebreaker needs consistently oriented faces
@@ -368,6 +390,62 @@ def _trial_psnr(coded: bytes, layout, faces: np.ndarray, positions: np.ndarray, 
         return -np.inf
 
 
+def _parse(data: bytes) -> tuple[int, bytes, bytes]:
+    """The variant byte, the Draco stream and the rest (the image) of a chart mesh record."""
+    data = bytes(data)
+    if len(data) < 10 or not is_chart_file(data):
+        raise ValueError("not a chart mesh file")
+    if zlib.crc32(data[:-4]) != int.from_bytes(data[-4:], "little"):
+        raise ValueError("corrupt chart mesh file (CRC mismatch)")
+    if data[4] != RECORD_VERSION:
+        raise ValueError(f"chart mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
+    variant = data[5]
+    if variant != DRACO_ONLY and variant >= len(CHART_VARIANTS):
+        raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
+    length, offset = _read_leb128(data, 6)
+    if offset + length > len(data) - 4:
+        raise ValueError("truncated chart mesh file")
+    return variant, data[offset : offset + length], data[offset + length : -4]
+
+
+def _faces_stream(stream: bytes):
+    try:
+        return draco._module().decode(stream)
+    except Exception as err:  # DracoPy raises its own error types
+        raise ValueError(f"corrupt chart mesh file (faces: {err})") from None
+
+
+def describe(data: bytes) -> dict:
+    """What a chart mesh record holds, without decoding its image (``bandelets info``).
+
+    Returns
+    -------
+    dict
+        ``representation``: ``"multi-chart geometry image"``, or ``"draco"`` where the record
+        holds Draco's own file of the mesh (the encoder found it better at the asked size);
+        ``vertices``, ``faces``, ``bytes``, ``faces_bytes`` (the Draco stream) and, for an
+        image, ``charts`` (faces per seed, merged), ``side`` and ``image_bytes``.
+    """
+    variant, stream, image_data = _parse(data)
+    decoded = _faces_stream(stream)
+    info = {
+        "representation": "draco" if variant == DRACO_ONLY else "multi-chart geometry image",
+        "vertices": len(np.asarray(decoded.points).reshape(-1, 3)),
+        "faces": len(np.asarray(decoded.faces).reshape(-1, 3)),
+        "bytes": len(data),
+        "faces_bytes": len(stream),
+    }
+    if variant != DRACO_ONLY:
+        header, _ = unpack(image_data)
+        per_seed, merged = CHART_VARIANTS[variant]
+        info |= {
+            "charts": {"faces_per_seed": per_seed, "merged": merged},
+            "side": header.width,
+            "image_bytes": len(image_data),
+        }
+    return info
+
+
 def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     """Rebuild the mesh of a chart mesh record (:func:`encode_charts`).
 
@@ -383,24 +461,8 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     """
     import trimesh
 
-    data = bytes(data)
-    if len(data) < 10 or not is_chart_file(data):
-        raise ValueError("not a chart mesh file")
-    if zlib.crc32(data[:-4]) != int.from_bytes(data[-4:], "little"):
-        raise ValueError("corrupt chart mesh file (CRC mismatch)")
-    if data[4] != RECORD_VERSION:
-        raise ValueError(f"chart mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
-    variant = data[5]
-    if variant != DRACO_ONLY and variant >= len(CHART_VARIANTS):
-        raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
-    length, offset = _read_leb128(data, 6)
-    if offset + length > len(data) - 4:
-        raise ValueError("truncated chart mesh file")
-    stream, image_data = data[offset : offset + length], data[offset + length : -4]
-    try:
-        decoded = draco._module().decode(stream)
-    except Exception as err:  # DracoPy raises its own error types
-        raise ValueError(f"corrupt chart mesh file (faces: {err})") from None
+    variant, stream, image_data = _parse(data)
+    decoded = _faces_stream(stream)
     faces = np.asarray(decoded.faces, np.int64).reshape(-1, 3)
     n_vertices = len(np.asarray(decoded.points).reshape(-1, 3))
     if len(faces) == 0 or faces.max() >= n_vertices or np.unique(faces).size != n_vertices:
@@ -454,7 +516,7 @@ def chart_report(mesh, size: int | None = None) -> dict:
 
     from . import metrics
 
-    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     labels = charts.region_charts(faces)
     side = _fitting_side(labels, faces, chart_side(len(vertices))) if size is None else int(size)
     layout = charts.layout(faces, labels, side)
