@@ -409,7 +409,7 @@ def _geometry_image(args) -> None:
 def _chart_image(args, mesh) -> bool:
     """The multi-chart image and report of a mesh the spherical path refuses (False if it takes it)."""
     from ..io.files import write_array
-    from ..surfaces.chartcodec import chart_report
+    from ..surfaces.chartreport import chart_report
     from ..surfaces.codec import is_genus0
 
     if is_genus0(mesh):
