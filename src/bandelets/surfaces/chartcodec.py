@@ -34,7 +34,7 @@ File layout (a mesh record of its own, not a plain .bdl image; little endian)::
     6       ...   byte length of the Draco stream (unsigned LEB128)
     ...     ...   the Draco stream: the faces, in the order the decoder numbers the vertices
     with LAYER:   byte length of the image (unsigned LEB128), the image, the layer's step
-                  (float32), the layer (:mod:`.normallayer`: one offset along the normal a
+                  and gain (two float32), the layer (:mod:`.normallayer`: one offset along the normal a
                   vertex, range coded) up to the CRC
     without:      the geometry image: a whole .bdl file (its own header and CRC32) of kind
                   geometry-image, 3 channels, square of even side, symmetric extension
@@ -375,16 +375,18 @@ class _Trials:
         side, layout, image = self.image(variant, side)
         coded = encode_with_stats(image, self.options, bpp=share * self.bits / (side * side)).data
         read = self._read(coded, layout)
-        offsets = np.einsum("ij,ij->i", self.positions - read, normallayer.vertex_normals(read, self.faces))
+        normals, bend = normallayer.normal_curvature(read, self.faces)
+        offsets = np.einsum("ij,ij->i", self.positions - read, normals)
+        gain = float(np.float32(offsets @ bend / max(float(bend @ bend), 1e-300)))  # least squares
         head = _leb128(len(coded)) + coded
         scale = float(np.linalg.norm(np.ptp(self.positions, axis=0)))
-        found = normallayer.encode(offsets, self.bits - 8 * (len(head) + 4), scale)
+        found = normallayer.encode(offsets - gain * bend, self.bits - 8 * (len(head) + 8), scale)
         if found is None:
             return -np.inf, variant | LAYER, b"", side
         step, data = found
-        decoded = normallayer.apply(read, self.faces, step, normallayer.decode(data, len(self.positions)))
-        psnr = _trial_psnr(decoded, self.faces, self.positions)
-        return psnr, variant | LAYER, head + struct.pack("<f", step) + data, side
+        q = normallayer.decode(data, len(self.positions))
+        psnr = _trial_psnr(normallayer.apply(read, self.faces, step, gain, q), self.faces, self.positions)
+        return psnr, variant | LAYER, head + struct.pack("<ff", step, gain) + data, side
 
 
 def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[float, int, bytes]:
@@ -538,7 +540,7 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
         if image_data:
             raise ValueError("corrupt chart mesh file (bytes after the Draco stream)")
         return trimesh.Trimesh(np.asarray(decoded.points, np.float64).reshape(-1, 3), faces, process=False)
-    image_data, step, layer = _layer_parts(variant, image_data)
+    image_data, (step, gain), layer = _layer_parts(variant, image_data)
     header, streams = unpack(image_data)
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError("corrupt chart mesh file (not a square geometry image)")
@@ -548,18 +550,18 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     layout = charts.layout(faces, charts.region_charts(faces, *cut), header.width)
     positions = _positions(image, layout, n_vertices)
     if layer is not None:
-        positions = normallayer.apply(positions, faces, step, normallayer.decode(layer, n_vertices))
+        positions = normallayer.apply(positions, faces, step, gain, normallayer.decode(layer, n_vertices))
     return trimesh.Trimesh(positions, faces, process=False)
 
 
-def _layer_parts(variant: int, image_data: bytes) -> tuple[bytes, float, bytes | None]:
-    """The image, the step and the normal layer of a record's payload (no layer: ``None``)."""
+def _layer_parts(variant: int, image_data: bytes) -> tuple[bytes, tuple[float, float], bytes | None]:
+    """The image, the step and gain and the normal layer of a record's payload (no layer: ``None``)."""
     if not variant & LAYER:
-        return image_data, 0.0, None
+        return image_data, (0.0, 0.0), None
     length, offset = _read_leb128(image_data, 0)
-    if offset + length + 4 > len(image_data):
+    if offset + length + 8 > len(image_data):
         raise ValueError("truncated chart mesh file")
-    (step,) = struct.unpack("<f", image_data[offset + length : offset + length + 4])
-    if not (np.isfinite(step) and step > 0):
-        raise ValueError("corrupt chart mesh file (normal layer step)")
-    return image_data[offset : offset + length], float(step), image_data[offset + length + 4 :]
+    step, gain = struct.unpack("<ff", image_data[offset + length : offset + length + 8])
+    if not (np.isfinite(step) and step > 0 and np.isfinite(gain)):
+        raise ValueError("corrupt chart mesh file (normal layer step or gain)")
+    return image_data[offset : offset + length], (float(step), float(gain)), image_data[offset + length + 8 :]
