@@ -173,6 +173,10 @@ def test_a_rough_scan_takes_the_normal_layer():
     plain = chartcodec.encode_charts(cut, bits, fallback=False, layer=False)
     assert chartcodec.describe(layered)["normal_layer_bytes"] > 0 and len(layered) <= bits / 8
     assert chartcodec.describe(plain)["normal_layer_bytes"] == 0
+    from bandelets.apps.meshsummary import mesh_encode_summary
+
+    line = mesh_encode_summary("in.obj", "out.bdl", cut, layered, 1.0)
+    assert f"and a normal layer of {chartcodec.describe(layered)['normal_layer_bytes']} bytes" in line
     decoded = codec.decode_mesh(layered)
     assert np.array_equal(decoded.faces, codec.decode_mesh(plain).faces)
     psnr = [metrics.hausdorff_psnr(cut, m, samples=20_000) for m in (decoded, codec.decode_mesh(plain))]
