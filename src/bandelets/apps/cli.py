@@ -183,6 +183,14 @@ def _info(args) -> None:
     from ..metrics import bits_per_pixel
 
     data = _read_bdl(args.input)
+    from ..surfaces.chartcodec import MAGIC
+
+    if data[:4] == MAGIC:  # a chart mesh record: no image header of its own
+        from .meshsummary import representation
+
+        with _about(args.input):
+            print(json.dumps(representation(data)))
+        return
     with _about(args.input):
         header = header_of(data)
         if is_tiled(data):
@@ -226,6 +234,7 @@ def _info(args) -> None:
         info |= {"tile": grid.tile, "tiles": len(grid.boxes)}
     if header.kind == Kind.GEOMETRY_IMAGE:
         info |= {"extension": header.extension, "mesh_vertices": header.mesh_vertices}
+        info["representation"] = "spherical geometry image"
     if header.kind == Kind.NORMAL_MAP:
         info |= {"layout": header.layout, "folded": header.folded, "green": header.green}
     if header.kind == Kind.GEOMETRY_IMAGE or header.frames:
@@ -314,9 +323,11 @@ def _mesh_encode(args) -> None:
     from ..io.files import write_atomic
     from ..surfaces.codec import encode_mesh, load_mesh
 
+    start = time.perf_counter()
     with _about(args.input):  # the mesh's checks name what is wrong, not which file
+        mesh = load_mesh(args.input)
         data = encode_mesh(
-            load_mesh(args.input),
+            mesh,
             size=args.size,
             bpp=args.bpp,
             bits_per_vertex=args.bits_per_vertex,
@@ -328,6 +339,10 @@ def _mesh_encode(args) -> None:
             restore=args.restore,
         )
     write_atomic(args.output, data)
+    from .meshsummary import mesh_encode_summary
+
+    elapsed = time.perf_counter() - start
+    print(mesh_encode_summary(args.input, args.output, mesh, data, elapsed), file=sys.stderr)
 
 
 def _mesh_decode(args) -> None:
@@ -393,7 +408,7 @@ def _geometry_image(args) -> None:
 def _chart_image(args, mesh) -> bool:
     """The multi-chart image and report of a mesh the spherical path refuses (False if it takes it)."""
     from ..io.files import write_array
-    from ..surfaces.chartcodec import chart_report
+    from ..surfaces.chartreport import chart_report
     from ..surfaces.codec import is_genus0
 
     if is_genus0(mesh):

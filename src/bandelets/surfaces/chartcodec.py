@@ -26,23 +26,29 @@ File layout (a mesh record of its own, not a plain .bdl image; little endian)::
 
     offset  size  field
     0       4     magic b"BDLC"
-    4       1     record version (RECORD_VERSION, 1)
+    4       1     record version (RECORD_VERSION, 2; version 1 is read too: no LAYER flag)
     5       1     the charts: an index into CHART_VARIANTS (faces per seed, merged or not),
-                  or DRACO_ONLY (255): the Draco stream is then Draco's own file of the mesh,
-                  its positions the decoded ones, and no geometry image follows
+                  plus LAYER (0x40) if a normal layer follows the image; or DRACO_ONLY (255):
+                  the Draco stream is then Draco's own file of the mesh, its positions the
+                  decoded ones, and no geometry image follows
     6       ...   byte length of the Draco stream (unsigned LEB128)
     ...     ...   the Draco stream: the faces, in the order the decoder numbers the vertices
-    ...     ...   the geometry image: a whole .bdl file (its own header and CRC32) of kind
+    with LAYER:   byte length of the image (unsigned LEB128), the image, the layer's step
+                  and gain (two float32), the layer (:mod:`.normallayer`: one offset along the normal a
+                  vertex, range coded) up to the CRC
+    without:      the geometry image: a whole .bdl file (its own header and CRC32) of kind
                   geometry-image, 3 channels, square of even side, symmetric extension
     end-4   4     CRC32 of everything before it
 
-Version 1's charts and layout are those of :func:`.charts.region_charts` and
+Versions 1 and 2's charts and layout are those of :func:`.charts.region_charts` and
 :func:`.charts.layout` with their constants of this version (:data:`.charts.FACES_PER_CHART`,
 :data:`.charts.PADDING`); changing them needs a new record version.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import struct
 import zlib
 
 import numpy as np
@@ -53,7 +59,7 @@ from ..codec.encoder import encode_with_stats
 from ..codec.options import EncodeOptions
 from ..format.fields import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY
 from ..format.header import unpack
-from . import atlas, charts, checks, draco
+from . import atlas, charts, checks, draco, normallayer, repair
 
 __all__ = [
     "DRACO_ONLY",
@@ -61,15 +67,16 @@ __all__ = [
     "CHART_VARIANTS",
     "RECORD_VERSION",
     "chart_side",
-    "chart_report",
     "check_surface",
     "decode_charts",
+    "describe",
     "encode_charts",
+    "fitting_side",
     "is_chart_file",
 ]
 
 MAGIC = b"BDLC"
-RECORD_VERSION = 1
+RECORD_VERSION = 2
 #: Image side over the square root of the vertex count: fertility.off (4,494 vertices) measured
 #: best at 72 to 80 pixels, rocker-arm.obj (10,044) at 128 to 160 (at Draco's sizes).
 SIDE_PER_ROOT_VERTEX = 1.25
@@ -79,6 +86,8 @@ CHART_VARIANTS = ((2000, False), (500, True), (250, True), (125, True))
 #: The record's variant byte when it holds Draco's own file of the mesh, positions and all (where
 #: no geometry image pays: the encoder measures both at the asked size and keeps the better).
 DRACO_ONLY = 255
+#: Flag of the variant byte (record version 2): a normal layer follows the image (:mod:`.normallayer`).
+LAYER = 0x40
 #: Most vertices of a mesh for which the encoder tries every variant.
 TRIED_UP_TO = 30_000
 TRIAL_SAMPLES = 20_000
@@ -101,14 +110,21 @@ def chart_side(n_vertices: int) -> int:
     return int(np.clip(side, 8, 4096))
 
 
-def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices and faces of a mesh the chart route can code, unused vertices dropped.
+def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray, repair.Split]:
+    """The vertices and faces of a mesh the chart route can code, unused vertices dropped and
+    non-manifold edges and pinched vertices split into manifold pieces (:mod:`.repair`).
+
+    Returns
+    -------
+    vertices, faces : ndarray
+    split : repair.Split
+        What was split (nothing on a manifold mesh).
 
     Raises
     ------
     ValueError
         One line naming what is wrong: no faces, non-finite coordinates, a single triangle,
-        faces repeating a vertex, triangles of zero area, an edge on more than two faces.
+        faces repeating a vertex, triangles of zero area, an edge that no split makes manifold.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -127,21 +143,27 @@ def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     )
     if repeated.size:
-        raise ValueError(f"{_faces(repeated.size)} repeat a vertex (degenerate; first: face {repeated[0]})")
+        verb = "repeats" if repeated.size == 1 else "repeat"
+        raise ValueError(f"{_faces(repeated.size)} {verb} a vertex (degenerate; first: face {repeated[0]})")
     flat = np.flatnonzero(checks.flat_triangles(vertices, faces))
     if flat.size:
         raise ValueError(
             f"{_faces(flat.size)} of zero area (degenerate; first: face {flat[0]}); remove or repair them"
         )
-    edges, counts = checks.edge_face_counts(faces)
-    if np.any(counts > 2):
-        a, b = edges[np.argmax(counts > 2)]
+    used, compact = np.unique(faces, return_inverse=True)
+    vertices, split_faces, split = repair.manifold_pieces(vertices[used], compact.reshape(-1, 3))
+    edges, counts = checks.edge_face_counts(split_faces)
+    if np.any(counts > 2):  # faces joined round both ends of the edge: no split frees them
+        origin = np.empty(len(vertices), np.int64)
+        origin[split_faces.ravel()] = faces.ravel()
+        a, b = origin[edges[np.argmax(counts > 2)]]
         raise ValueError(
-            f"non-manifold edge between vertices {a} and {b} (on {counts.max()} faces or more); "
-            "split the mesh into manifold pieces first"
+            f"non-manifold edge between vertices {a} and {b} (on {counts.max()} faces or more) that "
+            "splitting at its ends does not free; repair the mesh first"
         )
-    used, faces = np.unique(faces, return_inverse=True)
-    return vertices[used], faces.reshape(-1, 3)
+    if split.first_edge is not None:  # named by the input's vertex numbers
+        split = dataclasses.replace(split, first_edge=tuple(int(used[k]) for k in split.first_edge))
+    return vertices, split_faces, split
 
 
 def _faces(n: int) -> str:
@@ -176,8 +198,6 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     edge); its order does not depend on the positions' bits, so a fine encoding tells where
     each of the stream's vertices came from.
     """
-    from scipy.spatial import cKDTree
-
     module = draco._module()
 
     def once(points: np.ndarray, bits: int):
@@ -203,14 +223,23 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
     carrier[:, 0] = np.arange(len(vertices)) * 1e-7
     carrier[-1] = 1.0
     stream, carried, _ = once(carrier, CARRIER_BITS)
-    _, ordered, points = once(vertices, ORDER_BITS)
-    if not np.array_equal(carried, ordered) or len(points) != len(vertices) or len(ordered) != len(faces):
+    # Each vertex's number written in its position (base 1024 over the three axes, exact at
+    # ORDER_BITS bits): the decoded positions name the vertices even where the mesh has several
+    # at one place (the copies of a split non-manifold vertex).
+    index = np.arange(len(vertices))
+    digits = np.column_stack([index % 1024, (index // 1024) % 1024, index // 1024**2]).astype(np.float64)
+    _, ordered, points = once(digits, ORDER_BITS)
+    source = np.rint(points) @ np.array([1, 1024, 1024**2])
+    if (
+        not np.array_equal(carried, ordered)
+        or len(ordered) != len(faces)
+        or not np.array_equal(np.sort(source), index)
+    ):
         raise ValueError(
-            "the mesh has pinched (non-manifold) vertices or faces that cannot be oriented consistently "
-            "(a non-orientable surface); repair it first"
+            "the mesh has faces that cannot be oriented consistently (a non-orientable surface, "
+            "such as a Moebius strip); repair it first"
         )
-    source = cKDTree(vertices).query(points)[1]
-    return stream, ordered, vertices[source]
+    return stream, ordered, vertices[source.astype(np.int64)]
 
 
 def encode_charts(
@@ -223,6 +252,7 @@ def encode_charts(
     normal_weight: float = DEFAULT_NORMAL_WEIGHT,
     restore: bool = False,
     fallback: bool = True,
+    layer: bool = True,
     max_memory: int = MAX_MEMORY,
 ) -> bytes:
     """Compress a mesh of any topology into a chart mesh record of about ``bits`` bits.
@@ -239,6 +269,9 @@ def encode_charts(
     fallback : bool
         Store Draco's own file of the mesh instead (record variant :data:`DRACO_ONLY`) where it
         measures better at the same size (meshes up to :data:`TRIED_UP_TO` vertices).
+    layer : bool
+        Also try the image at part of the bits and a normal layer in the rest (record variant
+        flag :data:`LAYER`), kept where it measures better.
     max_memory : int
         Refuse a mesh or an image whose coding needs more bytes.
 
@@ -249,7 +282,7 @@ def encode_charts(
     """
     import trimesh
 
-    vertices, faces = check_surface(mesh.vertices, mesh.faces)
+    vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     checks.check_memory(len(faces), max_memory)
     oriented = trimesh.Trimesh(vertices, faces, process=False)
     trimesh.repair.fix_winding(oriented)  # Edgebreaker needs consistently oriented faces
@@ -277,35 +310,83 @@ def encode_charts(
         max_memory=max_memory,
     )
     tried = len(positions) <= TRIED_UP_TO
-    labels = {}
-
-    def attempt(variant: int, side: int) -> tuple[float, int, bytes]:
-        if variant not in labels:
-            labels[variant] = charts.region_charts(faces, *CHART_VARIANTS[variant])
-        if size is None:  # many small charts (a soup of parts) need a larger image than the default
-            side = _fitting_side(labels[variant], faces, side)
-        layout = charts.layout(faces, labels[variant], side)
-        owned = charts.owners(layout)
-        image = atlas.fit(layout.pixels[owned], positions[layout.corner_vertex[owned]], side)
-        coded = encode_with_stats(image, options, bpp=image_bits / (side * side)).data
-        return (_trial_psnr(coded, layout, faces, positions, max_memory) if tried else 0.0), variant, coded
-
+    trials = _Trials(faces, positions, options, image_bits, size is None, max_memory)
     # The cut into charts first, at the default side; then, without a side asked for, the side.
-    best = max((attempt(variant, side) for variant in range(len(CHART_VARIANTS) if tried else 1)), key=_score)
+    best = max(
+        (trials.attempt(variant, side) for variant in range(len(CHART_VARIANTS) if tried else 1)), key=_score
+    )
     if tried and size is None:
         others = {int(np.clip(round(side * factor / 2.0) * 2, 8, 4096)) for factor in SIDE_FACTORS} - {side}
-        best = max([best, *(attempt(best[1], other) for other in sorted(others))], key=_score)
+        best = max([best, *(trials.attempt(best[1], other) for other in sorted(others))], key=_score)
+    if layer:  # the best cut and side again, part of the bits to a normal layer (measured against none)
+        for share in normallayer.IMAGE_SHARES if tried else normallayer.IMAGE_SHARES[1:2]:
+            best = max([best, trials.layered(best[1] & ~LAYER, best[3], share)], key=_score)
     if tried and fallback:
         best = max(
-            [best, _draco_trial(vertices, faces_in, positions, faces, bits - 8 * (len(prefix) + 6 + 4))],
+            [
+                best,
+                (*_draco_trial(vertices, faces_in, positions, faces, bits - 8 * (len(prefix) + 6 + 4)), 0),
+            ],
             key=_score,
         )
-    _, variant, coded = best
+    _, variant, coded, _ = best
     if variant == DRACO_ONLY:
         body = prefix + bytes([DRACO_ONLY]) + _leb128(len(coded)) + coded
         return body + zlib.crc32(body).to_bytes(4, "little")
     body = prefix + bytes([variant]) + head + coded
     return body + zlib.crc32(body).to_bytes(4, "little")
+
+
+class _Trials:
+    """The encoder's trials of a mesh's cuts into charts, image sides and normal layers, each
+    coded and measured (:data:`TRIAL_SAMPLES`): ``(psnr, variant byte, payload, side)``."""
+
+    def __init__(self, faces, positions, options, bits: float, fit_side: bool, max_memory: int):
+        self.faces, self.positions, self.options, self.bits = faces, positions, options, bits
+        self.fit_side, self.max_memory = fit_side, max_memory
+        self.labels: dict = {}
+        self.made: dict = {}
+
+    def image(self, variant: int, side: int):
+        """The side (grown to hold every chart unless a side was asked for), layout and image."""
+        if variant not in self.labels:
+            self.labels[variant] = charts.region_charts(self.faces, *CHART_VARIANTS[variant])
+        if self.fit_side:  # many small charts (a soup of parts) need a larger image than the default
+            side = fitting_side(self.labels[variant], self.faces, side)
+        if (variant, side) not in self.made:
+            layout = charts.layout(self.faces, self.labels[variant], side)
+            owned = charts.owners(layout)
+            points = self.positions[layout.corner_vertex[owned]]
+            self.made[variant, side] = layout, atlas.fit(layout.pixels[owned], points, side)
+        return side, *self.made[variant, side]
+
+    def _read(self, coded: bytes, layout) -> np.ndarray:
+        return _read_back(coded, layout, len(self.positions), self.max_memory)
+
+    def attempt(self, variant: int, side: int) -> tuple[float, int, bytes, int]:
+        """The image alone at all the bits."""
+        side, layout, image = self.image(variant, side)
+        coded = encode_with_stats(image, self.options, bpp=self.bits / (side * side)).data
+        return _trial_psnr(self._read(coded, layout), self.faces, self.positions), variant, coded, side
+
+    def layered(self, variant: int, side: int, share: float) -> tuple[float, int, bytes, int]:
+        """The image at ``share`` of the bits, a normal layer (:mod:`.normallayer`) in the rest;
+        the payload: image length, image, step, layer (``-inf`` if no layer fits)."""
+        side, layout, image = self.image(variant, side)
+        coded = encode_with_stats(image, self.options, bpp=share * self.bits / (side * side)).data
+        read = self._read(coded, layout)
+        normals, bend = normallayer.normal_curvature(read, self.faces)
+        offsets = np.einsum("ij,ij->i", self.positions - read, normals)
+        gain = float(np.float32(offsets @ bend / max(float(bend @ bend), 1e-300)))  # least squares
+        head = _leb128(len(coded)) + coded
+        scale = float(np.linalg.norm(np.ptp(self.positions, axis=0)))
+        found = normallayer.encode(offsets - gain * bend, self.bits - 8 * (len(head) + 8), scale)
+        if found is None:
+            return -np.inf, variant | LAYER, b"", side
+        step, data = found
+        q = normallayer.decode(data, len(self.positions))
+        psnr = _trial_psnr(normallayer.apply(read, self.faces, step, gain, q), self.faces, self.positions)
+        return psnr, variant | LAYER, head + struct.pack("<ff", step, gain) + data, side
 
 
 def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[float, int, bytes]:
@@ -325,7 +406,7 @@ def _draco_trial(vertices, faces_in, positions, faces, bits: float) -> tuple[flo
     return psnr, DRACO_ONLY, data
 
 
-def _fitting_side(labels: np.ndarray, faces: np.ndarray, side: int) -> int:
+def fitting_side(labels: np.ndarray, faces: np.ndarray, side: int) -> int:
     """The smallest side from ``side`` up (by quarters, even) whose image holds every chart."""
     n_vertices = int(faces.max()) + 1
     counts = np.bincount(np.unique(labels[:, None] * n_vertices + faces) // n_vertices)  # chart vertices
@@ -351,21 +432,87 @@ def _positions(image: np.ndarray, layout: charts.Layout, n_vertices: int) -> np.
     return positions
 
 
-def _trial_psnr(coded: bytes, layout, faces: np.ndarray, positions: np.ndarray, max_memory: int) -> float:
-    """Hausdorff PSNR of the mesh a coded image decodes to (:data:`TRIAL_SAMPLES` samples)."""
+def _read_back(coded: bytes, layout, n_vertices: int, max_memory: int) -> np.ndarray:
+    """The positions the decoder reads from a coded image."""
+    header, streams = unpack(coded)
+    return _positions(decode_parsed(header, streams, max_memory=max_memory), layout, n_vertices)
+
+
+def _trial_psnr(decoded: np.ndarray, faces: np.ndarray, positions: np.ndarray) -> float:
+    """Hausdorff PSNR of decoded positions on the faces (:data:`TRIAL_SAMPLES` samples)."""
     import trimesh
 
     from . import metrics
 
-    header, streams = unpack(coded)
-    image = decode_parsed(header, streams, max_memory=max_memory)
-    decoded = trimesh.Trimesh(_positions(image, layout, len(positions)), faces, process=False)
     try:
         return metrics.hausdorff_psnr(
-            trimesh.Trimesh(positions, faces, process=False), decoded, TRIAL_SAMPLES
+            trimesh.Trimesh(positions, faces, process=False),
+            trimesh.Trimesh(decoded, faces, process=False),
+            TRIAL_SAMPLES,
         )
     except ValueError:  # a decoded mesh of no area
         return -np.inf
+
+
+def _parse(data: bytes) -> tuple[int, bytes, bytes]:
+    """The variant byte, the Draco stream and the rest (the image) of a chart mesh record."""
+    data = bytes(data)
+    if len(data) < 10 or not is_chart_file(data):
+        raise ValueError("not a chart mesh file")
+    if zlib.crc32(data[:-4]) != int.from_bytes(data[-4:], "little"):
+        raise ValueError("corrupt chart mesh file (CRC mismatch)")
+    if data[4] not in (1, RECORD_VERSION):
+        raise ValueError(
+            f"chart mesh record version {data[4]}; this build reads versions 1 to {RECORD_VERSION}"
+        )
+    variant = data[5]
+    layered = data[4] >= 2 and variant != DRACO_ONLY and variant & LAYER
+    if variant != DRACO_ONLY and (variant & ~LAYER if layered else variant) >= len(CHART_VARIANTS):
+        raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
+    length, offset = _read_leb128(data, 6)
+    if offset + length > len(data) - 4:
+        raise ValueError("truncated chart mesh file")
+    return variant, data[offset : offset + length], data[offset + length : -4]
+
+
+def _faces_stream(stream: bytes):
+    try:
+        return draco._module().decode(stream)
+    except Exception as err:  # DracoPy raises its own error types
+        raise ValueError(f"corrupt chart mesh file (faces: {err})") from None
+
+
+def describe(data: bytes) -> dict:
+    """What a chart mesh record holds, without decoding its image (``bandelets info``).
+
+    Returns
+    -------
+    dict
+        ``representation``: ``"multi-chart geometry image"``, or ``"draco"`` where the record
+        holds Draco's own file of the mesh (the encoder found it better at the asked size);
+        ``vertices``, ``faces``, ``bytes``, ``faces_bytes`` (the Draco stream) and, for an
+        image, ``charts`` (faces per seed, merged), ``side`` and ``image_bytes``.
+    """
+    variant, stream, image_data = _parse(data)
+    decoded = _faces_stream(stream)
+    info = {
+        "representation": "draco" if variant == DRACO_ONLY else "multi-chart geometry image",
+        "vertices": len(np.asarray(decoded.points).reshape(-1, 3)),
+        "faces": len(np.asarray(decoded.faces).reshape(-1, 3)),
+        "bytes": len(data),
+        "faces_bytes": len(stream),
+    }
+    if variant != DRACO_ONLY:
+        image_data, _, layer = _layer_parts(variant, image_data)
+        header, _ = unpack(image_data)
+        per_seed, merged = CHART_VARIANTS[variant & ~LAYER]
+        info |= {
+            "charts": {"faces_per_seed": per_seed, "merged": merged},
+            "side": header.width,
+            "image_bytes": len(image_data),
+            "normal_layer_bytes": 0 if layer is None else len(layer),
+        }
+    return info
 
 
 def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
@@ -383,24 +530,8 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
     """
     import trimesh
 
-    data = bytes(data)
-    if len(data) < 10 or not is_chart_file(data):
-        raise ValueError("not a chart mesh file")
-    if zlib.crc32(data[:-4]) != int.from_bytes(data[-4:], "little"):
-        raise ValueError("corrupt chart mesh file (CRC mismatch)")
-    if data[4] != RECORD_VERSION:
-        raise ValueError(f"chart mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
-    variant = data[5]
-    if variant != DRACO_ONLY and variant >= len(CHART_VARIANTS):
-        raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
-    length, offset = _read_leb128(data, 6)
-    if offset + length > len(data) - 4:
-        raise ValueError("truncated chart mesh file")
-    stream, image_data = data[offset : offset + length], data[offset + length : -4]
-    try:
-        decoded = draco._module().decode(stream)
-    except Exception as err:  # DracoPy raises its own error types
-        raise ValueError(f"corrupt chart mesh file (faces: {err})") from None
+    variant, stream, image_data = _parse(data)
+    decoded = _faces_stream(stream)
     faces = np.asarray(decoded.faces, np.int64).reshape(-1, 3)
     n_vertices = len(np.asarray(decoded.points).reshape(-1, 3))
     if len(faces) == 0 or faces.max() >= n_vertices or np.unique(faces).size != n_vertices:
@@ -409,66 +540,28 @@ def decode_charts(data: bytes, max_memory: int = MAX_MEMORY):
         if image_data:
             raise ValueError("corrupt chart mesh file (bytes after the Draco stream)")
         return trimesh.Trimesh(np.asarray(decoded.points, np.float64).reshape(-1, 3), faces, process=False)
+    image_data, (step, gain), layer = _layer_parts(variant, image_data)
     header, streams = unpack(image_data)
     if header.kind != "geometry-image" or header.height != header.width or header.width % 2:
         raise ValueError("corrupt chart mesh file (not a square geometry image)")
     checks.check_memory(len(faces), max_memory)
     image = decode_parsed(header, streams, max_memory=max_memory)
-    layout = charts.layout(faces, charts.region_charts(faces, *CHART_VARIANTS[variant]), header.width)
-    return trimesh.Trimesh(_positions(image, layout, n_vertices), faces, process=False)
+    cut = CHART_VARIANTS[variant & ~LAYER]
+    layout = charts.layout(faces, charts.region_charts(faces, *cut), header.width)
+    positions = _positions(image, layout, n_vertices)
+    if layer is not None:
+        positions = normallayer.apply(positions, faces, step, gain, normallayer.decode(layer, n_vertices))
+    return trimesh.Trimesh(positions, faces, process=False)
 
 
-def _stretch(pixels: np.ndarray, corners: np.ndarray, positions: np.ndarray) -> float:
-    """L2 geometric stretch of the layout (Sander et al.), normalized to 1 at best: the RMS over
-    the surface of the map's singular values, over that of a map preserving the total area.
-    Triangles flat in the layout (three vertices on one side of a square) are left out."""
-    uv = pixels[corners]  # (F, 3, 2)
-    xyz = positions  # (F, 3, 3)
-    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
-    area_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    keep = np.abs(area_uv) > 1e-6 * np.median(np.abs(area_uv))
-    q1, q2 = xyz[keep, 1] - xyz[keep, 0], xyz[keep, 2] - xyz[keep, 0]
-    a = 2.0 * area_uv[keep]
-    # Partial derivatives of the positions along the layout's two axes.
-    ds = (q1 * d2[keep, 1:2] - q2 * d1[keep, 1:2]) / a[:, None]
-    dt = (q2 * d1[keep, 0:1] - q1 * d2[keep, 0:1]) / a[:, None]
-    area_3d = 0.5 * np.linalg.norm(np.cross(q1, q2), axis=1)
-    mean_square = np.sum(area_3d * 0.5 * (np.sum(ds**2, 1) + np.sum(dt**2, 1))) / np.sum(area_3d)
-    return float(np.sqrt(mean_square * np.sum(np.abs(area_uv[keep])) / np.sum(area_3d)))
-
-
-def chart_report(mesh, size: int | None = None) -> dict:
-    """How the chart route lays out a mesh, before any coding (``geometry-image --report``).
-
-    Returns
-    -------
-    dict
-        ``charts``: their count; ``side``: of the image; ``used``: share of the image inside the
-        charts' squares; ``stretch``: :func:`_stretch` (1 at best; Tutte's uniform weights squeeze
-        the triangles along the squares' sides, which this mean weighs heavily);
-        ``seam_copies``: extra copies of the vertices on the seams, over the vertex count;
-        ``psnr``: Hausdorff PSNR (dB) against ``mesh`` of the mesh read back from the uncoded
-        image (the ceiling no rate passes); ``image``: the image, shape (side, side, 3).
-    """
-    import trimesh
-
-    from . import metrics
-
-    vertices, faces = check_surface(mesh.vertices, mesh.faces)
-    labels = charts.region_charts(faces)
-    side = _fitting_side(labels, faces, chart_side(len(vertices))) if size is None else int(size)
-    layout = charts.layout(faces, labels, side)
-    owned = charts.owners(layout)
-    image = atlas.fit(layout.pixels[owned], vertices[layout.corner_vertex[owned]], side)
-    back = np.zeros_like(vertices)
-    back[layout.corner_vertex[owned]] = atlas.sample(image, layout.pixels[owned])
-    sizes = charts.pack(np.bincount(layout.corner_chart), side)[1]
-    return {
-        "charts": int(labels.max()) + 1,
-        "side": side,
-        "used": float(np.sum(sizes.astype(np.float64) ** 2) / side**2),
-        "stretch": _stretch(layout.pixels, layout.face_corners, vertices[faces]),
-        "seam_copies": float(len(owned) / len(vertices) - 1.0),
-        "psnr": metrics.hausdorff_psnr(mesh, trimesh.Trimesh(back, faces, process=False)),
-        "image": image,
-    }
+def _layer_parts(variant: int, image_data: bytes) -> tuple[bytes, tuple[float, float], bytes | None]:
+    """The image, the step and gain and the normal layer of a record's payload (no layer: ``None``)."""
+    if not variant & LAYER:
+        return image_data, (0.0, 0.0), None
+    length, offset = _read_leb128(image_data, 0)
+    if offset + length + 8 > len(image_data):
+        raise ValueError("truncated chart mesh file")
+    step, gain = struct.unpack("<ff", image_data[offset + length : offset + length + 8])
+    if not (np.isfinite(step) and step > 0 and np.isfinite(gain)):
+        raise ValueError("corrupt chart mesh file (normal layer step or gain)")
+    return image_data[offset : offset + length], (float(step), float(gain)), image_data[offset + length + 8 :]
