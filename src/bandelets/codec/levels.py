@@ -6,11 +6,12 @@ hold the approximation and the detail levels coarser than ``k`` (:mod:`bandelets
 which are the first bytes of the file. The inverse transform stops ``k`` levels early
 (:func:`bandelets.transform.coarse.coarse`), filtered to the box averages of the image it
 synthesises (:func:`bandelets.transform.coarse.box_filtered`: a mip), with the directions of the
-lifted levels it inverts,
-the local frames of the levels it reads and the Riesz pair turned back on the coarse grid (the
-angle of a frequency is the same on both grids); a normal map's vectors are renormalised. No
-restoration and no loop filter (they are fitted to the full image). Beyond the file's wavelet
-levels, the coarse approximation is halved by 2 x 2 box averages (renormalised for a normal map).
+lifted levels it inverts, the local frames of the levels it reads and the Riesz pair turned back
+on the coarse grid (the angle of a frequency is the same on both grids); a normal map's vectors
+are renormalised. No loop filter (it is fitted to the full image) and no restoration, but for a
+file of a box wavelet (``encode(box_mips=True)``), whose level images are its box mips themselves,
+restored (:mod:`bandelets.codec.boxlevels`). Beyond the file's wavelet levels, the coarse
+approximation is halved by 2 x 2 box averages (renormalised for a normal map).
 
 Tiled files: each tile is decoded at level ``k`` and the tiles are placed side by side; a tile of
 ``h x w`` pixels gives ``ceil(h / 2**k) x ceil(w / 2**k)``, so the image is ``ceil(side / 2**k)``
@@ -39,6 +40,7 @@ from ..transform.bandeletize import debandeletize
 from ..transform.bandelets import apply_trees
 from ..transform.coarse import box_filtered, coarse
 from ..transform.normals import unit_normals
+from .boxlevels import box_level, has_box_levels
 
 __all__ = ["decode_level", "level_bytes", "level_shape", "prefix_header"]
 
@@ -95,26 +97,27 @@ def level_image(header: Header, segments: tuple, level: int, size: int = 0, data
         block = np.ascontiguousarray(x[:h, :w])
         x[:h, :w] = apply_trees(block, header.levels - k, trees, debandeletize, header.transform_1d)
         channels.append(x)
+    found = {}
     if header.frames:  # back from the local frames, coarsest first (frames.to_global), the levels read
         for lev in range(header.levels, k, -1):
             args = (header.wavelet, header.levels, header.extension)
-            found = frames.level_frames(channels, lev, *args, header.kind)
-            frames.rotate(channels, found, lev, header.levels, header.normal_weight, local=False)
-    small = np.stack(
-        [
-            box_filtered(
-                coarse(
-                    x, header.wavelet, header.levels, k, header.extension, header.lifting, lifting or None
-                ),
-                header.wavelet,
-                k,
-            )
-            for x in channels
-        ]
-    )
+            found[lev] = frames.level_frames(channels, lev, *args, header.kind)
+            frames.rotate(channels, found[lev], lev, header.levels, header.normal_weight, local=False)
+    if has_box_levels(header):
+        bins = [q.reshape(shape) for q in quantized]
+        small = box_level(header, trees, bins, [x[:h, :w] for x in channels], found, k)
+    else:
+        small = np.stack([_local_means(x, header, k, lifting) for x in channels])
     if header.riesz:
         small[0], small[1] = riesz.inverse(small[0], small[1], header.riesz)
     return _halved(_image(small, header, k), header, level - k)
+
+
+def _local_means(x: np.ndarray, header: Header, k: int, lifting: list) -> np.ndarray:
+    """The level-``k`` image of the channel of dequantized coefficients ``x`` (overwritten) of a file
+    whose wavelet is not a box one: its approximation, filtered towards box averages."""
+    means = coarse(x, header.wavelet, header.levels, k, header.extension, header.lifting, lifting or None)
+    return box_filtered(means, header.wavelet, k)
 
 
 def _image(small: np.ndarray, header: Header, k: int) -> np.ndarray:
