@@ -42,8 +42,7 @@ how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for th
 only R and G were normal components (a BC5-style map whose blue holds something else, such as
 ambient occlusion): the decoder returns ``x, y, z``. The layouts other than ``xyz`` were added
 within version 6: a file of layout ``xyz`` is read by every version 6 decoder. Within version 19 an
-``xy`` or ``rg`` map may also be coded as three channels, its ``x, y`` and the ``z`` rebuilt
-(``encode(box_mips=True)``): the decoder returns the source's layout all the same.
+``xy`` or ``rg`` map may be coded as ``x, y, z`` (``box_mips``): it decodes to its layout all the same.
 
 Geometry-image options (format version 2), right after the header's LEB128 integers in a file of
 kind 2::
