@@ -14,6 +14,11 @@ Two families are offered:
   stay orthogonal: through :func:`pywt.wavedec2`, except Haar, lifted by
   :mod:`bandelets.transform.lifting` (the same coefficients to the last bit, without PyWavelets' cost
   per call).
+* ``"rbio1.3"``, through :func:`pywt.wavedec2` with periodic extension too: a biorthogonal wavelet whose
+  analysis low-pass is the box average of a pair (as Haar's) and whose synthesis low-pass is smoother,
+  so that the approximation of ``k`` levels is the ``2**k x 2**k`` box mip of the channel
+  (``encode(box_mips=True)``, :mod:`bandelets.codec.boxlevels`). Its synthesis functions' norms are
+  within 5 % of 1 and are taken as 1.
 
 Coefficients are returned in the Mallat layout: one ``(H, W)`` array whose top-left
 ``H / 2**levels x W / 2**levels`` block is the approximation and where the detail subbands
