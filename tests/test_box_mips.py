@@ -80,14 +80,17 @@ def test_a_default_file_misses_it_on_the_crease_map() -> None:
     assert max(gaps(x, encode(x, bpp=1.0, kind="normal-map"))) > 0.2
 
 
-def test_unrestored_level_images_are_the_box_means_of_the_decode() -> None:
-    # An image (no renormalisation), no restoration, no loop filter: the prefix's image at level k is
-    # the 2^k x 2^k box average of the decoded image, to rounding.
+@pytest.mark.parametrize("restore", [False, True])
+def test_unrestored_level_images_are_the_box_means_of_the_decode(restore) -> None:
+    # An image (no renormalisation) decoded without restoration, of a file with and without it: the
+    # prefix's image at level k is the 2^k x 2^k box average of the decoded image, to rounding.
     x = unit3(crease_normal_map(64))
-    data = encode(x, bpp=2.0, box_mips=True, restore=False, loop_filter=False)
-    full, needs = decode(data), level_bytes(data)
+    data = encode(x, bpp=1.0, box_mips=True, restore=restore, loop_filter=False)
+    assert (unpack(data)[0].restoration > 0) == restore
+    full, needs = decode(data, restore=False), level_bytes(data)
     for k in range(1, len(needs)):
-        np.testing.assert_allclose(decode(data[: needs[k]], level=k), box(full, k), rtol=0, atol=1e-9)
+        image = decode(data[: needs[k]], level=k, restore=False)
+        np.testing.assert_allclose(image, box(full, k), rtol=0, atol=1e-9)
 
 
 def test_haar_is_kept_and_two_channel_maps_keep_their_layout() -> None:
