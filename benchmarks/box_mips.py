@@ -3,7 +3,7 @@ the file should be within 0.1 degree of the box mip of the full decode, both mea
 reference mip of the original; and what the option costs in rate against the default encoding.
 
     PYTHONPATH=src python benchmarks/box_mips.py [--maps a.png,bumps] [--rates 0.5,1] \
-        [--bd-rates 0.25,0.5,1,2] [--wavelets rbio1.3,haar] [--size 512]
+        [--bd-rates 0.25,0.5,1,2] [--wavelets rbio1.3,haar] [--size 512] [--only levels|cost|floors]
 
 First table: for each map, rate and box wavelet, the mean angle (degrees) of each level's prefix
 image and of the full decode's mip from the reference mip (the 2^k x 2^k box average of the
@@ -24,6 +24,7 @@ from bandelets import decode, encode
 from bandelets.codec.levels import level_bytes
 from bandelets.io.gpu import mip_chain
 from bandelets.metrics import bd_psnr, psnr
+from bandelets.transform.normals import equidistant
 
 MAPS = (
     "acacia_door_bottom_n.png,boombox_2048.png,flighthelmet_leather_512.png,godot_scifi_vent_decal_512.png,"
@@ -82,6 +83,32 @@ def cost_table(names: list[str], rates: list[float], wavelets: list[str], size: 
         print(f"| {name} | {bd} | {angles} |", flush=True)
 
 
+def box(a: np.ndarray, k: int) -> np.ndarray:
+    h, w = a.shape[0] >> k, a.shape[1] >> k
+    return a[: h << k, : w << k].reshape(h, 1 << k, w, 1 << k, -1).mean(axis=(1, 3))
+
+
+def floor_table(names: list[str], size: int) -> None:
+    """Why two channels cannot give box mips: the mean angle of the box average of each map's
+    equidistant coordinates / of its x, y (z rebuilt) from the reference mip, before any coding."""
+    print("| map | equidistant / x, y: levels 1, 2, ... (degrees) |")
+    print("| --- | --- |")
+    for name in names:
+        x = load(name, size)
+        reference, coordinates = mip_chain(x), equidistant(x)
+        cells = []
+        for k in range(1, len(reference)):
+            if min(reference[k].shape[:2]) < 2:
+                break
+            eq = box(coordinates, k)
+            angle_to_z = np.linalg.norm(eq, axis=-1, keepdims=True)
+            shrink = np.sin(angle_to_z) / np.maximum(angle_to_z, 1e-300)
+            vectors = np.dstack([eq * np.where(angle_to_z > 0, shrink, 1.0), np.cos(angle_to_z)])
+            xy = np.clip(box(x[..., :2], k), -1, 1)
+            cells.append(f"{angle(vectors, reference[k]):.2f} / {angle(xy, reference[k]):.2f}")
+        print(f"| {name} | {', '.join(cells)} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--maps", default=MAPS)
@@ -91,9 +118,12 @@ def main() -> None:
     parser.add_argument(
         "--size", type=int, default=512, help="crop of the real maps (0: whole), generated side"
     )
-    parser.add_argument("--only", choices=("levels", "cost"), help="one of the two tables")
+    parser.add_argument("--only", choices=("levels", "cost", "floors"), help="one table (floors: only so)")
     args = parser.parse_args()
     names, wavelets = args.maps.split(","), args.wavelets.split(",")
+    if args.only == "floors":
+        floor_table(names, args.size)
+        return
     if args.only != "cost":
         level_table(names, [float(r) for r in args.rates.split(",")], wavelets, args.size)
     if args.only != "levels":
