@@ -9,8 +9,8 @@ before restoration, to the last digits (a biorthogonal transform's analysis undo
 And it can be restored like the full image (:mod:`bandelets.restore.restoration`): the coarse bins,
 at threshold ``T / 2**k`` for the mip itself, with the file's iterations, its bandelet trees and local
 frames, no unit length (a box average of unit vectors is shorter). On the shared leather map at 0.5
-bpp this brings the level-1 image from 0.13 to 0.04 degree off the box mip of the restored full
-decode (BENCHMARKS, "Box mips from a prefix").
+bpp this brings the level-1 image's excess over the restored full decode's box mip (their mean angles
+from the original's) from 0.13 to 0.03 degree (BENCHMARKS, "Box mips from a prefix").
 """
 
 from __future__ import annotations
