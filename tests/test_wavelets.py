@@ -15,7 +15,7 @@ from bandelets.transform.wavelets import max_levels, subband_slices, wavedec, wa
 SHAPES_LEVELS = [((64, 96), 3), ((256, 128), 4), ((32, 48), 2), ((32, 16), 1)]
 
 
-@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar"])
+@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar", "rbio1.3"])
 @pytest.mark.parametrize(("shape", "levels"), SHAPES_LEVELS)
 def test_perfect_reconstruction(wavelet, shape, levels, rng):
     x = rng.standard_normal(shape)
@@ -69,7 +69,7 @@ def test_cdf97_is_not_orthogonal_but_normalised():
     assert np.allclose(subband_norms("db4", 2), 1.0, atol=1e-9)
 
 
-@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar"])
+@pytest.mark.parametrize("wavelet", ["cdf97", "db4", "haar", "rbio1.3"])
 def test_constant_image_has_no_details(wavelet):
     shape, levels = (64, 96), 3
     c = wavedec(np.full(shape, 3.25), wavelet, levels)

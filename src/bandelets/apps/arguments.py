@@ -142,6 +142,13 @@ def _add_encode(sub) -> None:
         "height, one across them (maps baked from height fields; default: where it pays)",
     )
     p.add_argument(
+        "--box-mips",
+        action="store_true",
+        help="make every prefix level (decode --level K) the box mip of the coded map, as a GPU mip chain "
+        "is made: a box wavelet (rbio1.3 unless haar is given) and a normal map's three channels; costs "
+        "rate (docs/gpu.md)",
+    )
+    p.add_argument(
         "--tile",
         type=natural_int,
         default=0,

@@ -105,6 +105,7 @@ def _encode(args) -> None:
         xy=args.xy,
         lifting=args.lifting,
         riesz=args.riesz,
+        box_mips=args.box_mips,
         tile=args.tile,
         lossless=True if args.lossless else False if args.no_lossless else None,
         effort=args.effort,

@@ -90,7 +90,8 @@ def decode(
         Decode the image at ``1 / 2**level`` of the size (each side rounded up) from the first bytes
         of the file only (format version 19; ``data`` may be a prefix of the file that holds that
         level, :func:`bandelets.codec.levels.level_bytes`): the wavelet transform's coarse
-        approximation, without restoration or loop filter (:mod:`bandelets.codec.levels`).
+        approximation, without restoration (but a ``box_mips`` file's, with ``restore``) or loop
+        filter (:mod:`bandelets.codec.levels`).
         0: the full decode. Not with ``region``; not of a lossless file.
     **limits
         ``max_side`` and ``max_samples`` (see :func:`bandelets.format.header.unpack`).
@@ -124,7 +125,7 @@ def decode(
     if level:
         if region is not None:
             raise ValueError("decode at a level takes no region: crop the image it returns")
-        return decode_level(data, level, max_memory, **limits)
+        return decode_level(data, level, max_memory, restore=restore, max_work=max_work, **limits)
     if is_tiled(data):
         return _decode_tiles(
             data,

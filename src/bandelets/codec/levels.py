@@ -6,11 +6,12 @@ hold the approximation and the detail levels coarser than ``k`` (:mod:`bandelets
 which are the first bytes of the file. The inverse transform stops ``k`` levels early
 (:func:`bandelets.transform.coarse.coarse`), filtered to the box averages of the image it
 synthesises (:func:`bandelets.transform.coarse.box_filtered`: a mip), with the directions of the
-lifted levels it inverts,
-the local frames of the levels it reads and the Riesz pair turned back on the coarse grid (the
-angle of a frequency is the same on both grids); a normal map's vectors are renormalised. No
-restoration and no loop filter (they are fitted to the full image). Beyond the file's wavelet
-levels, the coarse approximation is halved by 2 x 2 box averages (renormalised for a normal map).
+lifted levels it inverts, the local frames of the levels it reads and the Riesz pair turned back
+on the coarse grid (the angle of a frequency is the same on both grids); a normal map's vectors
+are renormalised. No loop filter (it is fitted to the full image) and no restoration, but for a
+file of a box wavelet (``encode(box_mips=True)``), whose level images are its box mips themselves,
+restored (:mod:`bandelets.codec.boxlevels`). Beyond the file's wavelet levels, the coarse
+approximation is halved by 2 x 2 box averages (renormalised for a normal map).
 
 Tiled files: each tile is decoded at level ``k`` and the tiles are placed side by side; a tile of
 ``h x w`` pixels gives ``ceil(h / 2**k) x ceil(w / 2**k)``, so the image is ``ceil(side / 2**k)``
@@ -29,16 +30,17 @@ import numpy as np
 from ..coding import rangecoder
 from ..coding.image import code_image, new_coders
 from ..format.container import _HEAD, header_of, is_tiled, read
-from ..format.fields import LOSSLESS, MAX_MEMORY, FormatError, Kind, Layout, padded_shape
+from ..format.fields import LOSSLESS, MAX_MEMORY, MAX_WORK, FormatError, Kind, Layout, padded_shape
 from ..format.header import HEADER_BYTES, Header, streams_offset, unpack_prefix
 from ..format.levels import group_count, groups_for
-from ..format.limits import check_memory
+from ..format.limits import check_memory, check_work
 from ..format.quantizer import dequantize
 from ..transform import frames, riesz
 from ..transform.bandeletize import debandeletize
 from ..transform.bandelets import apply_trees
 from ..transform.coarse import box_filtered, coarse
 from ..transform.normals import unit_normals
+from .boxlevels import box_level, has_box_levels
 
 __all__ = ["decode_level", "level_bytes", "level_shape", "prefix_header"]
 
@@ -48,30 +50,49 @@ def level_shape(height: int, width: int, level: int) -> tuple[int, int]:
     return -(-height >> level), -(-width >> level)
 
 
-def decode_level(data: bytes, level: int, max_memory: int = MAX_MEMORY, **limits) -> np.ndarray:
-    """The image of the file (or a prefix of it) ``data`` at ``level`` (see the module; ``max_memory``
-    and ``limits``, ``max_side`` and ``max_samples``: as :func:`bandelets.decode`, for each tile of a
-    tiled file), shaped as :func:`bandelets.decode` returns it."""
+def decode_level(
+    data: bytes,
+    level: int,
+    max_memory: int = MAX_MEMORY,
+    restore: bool = True,
+    max_work: int = MAX_WORK,
+    **limits,
+) -> np.ndarray:
+    """The image of the file (or a prefix of it) ``data`` at ``level`` (see the module; ``max_memory``,
+    ``restore``, ``max_work`` and ``limits``, ``max_side`` and ``max_samples``: as
+    :func:`bandelets.decode`, for each tile of a tiled file), shaped as :func:`bandelets.decode`
+    returns it."""
     if not isinstance(level, (int, np.integer)) or level < 0:
         raise ValueError(f"level must be an integer >= 0, not {level!r}")
     if is_tiled(data):
-        return _tiles(data, level, max_memory, **limits)
-    return _prefix_image(data, level, max_memory, **limits)
+        return _tiles(data, level, max_memory, restore, max_work, **limits)
+    return _prefix_image(data, level, max_memory, restore, max_work, **limits)
 
 
-def _prefix_image(data: bytes, level: int, max_memory: int, **limits) -> np.ndarray:
+def _prefix_image(
+    data: bytes, level: int, max_memory: int, restore: bool, max_work: int, **limits
+) -> np.ndarray:
     """The image at ``level`` of a plain file, from the bytes it needs alone (no CRC over the rest)."""
     needs = level_bytes(data)
     if level and needs[min(level, len(needs) - 1)] <= len(data):
         data = data[: needs[min(level, len(needs) - 1)]]
     header, segments = unpack_prefix(data, **limits)
     check_memory(replace(header, restoration=0, loop_filter=None), max_memory)  # full-size bins at most
-    return level_image(header, segments, level, len(data), data)
+    return level_image(header, segments, level, len(data), data, restore, max_work)
 
 
-def level_image(header: Header, segments: tuple, level: int, size: int = 0, data: bytes = b"") -> np.ndarray:
+def level_image(
+    header: Header,
+    segments: tuple,
+    level: int,
+    size: int = 0,
+    data: bytes = b"",
+    restore: bool = True,
+    max_work: int = MAX_WORK,
+) -> np.ndarray:
     """The image at ``level`` of a parsed file: ``segments`` those of each stream it holds (a prefix's
-    ``size`` bytes, ``data``: for the message of a refusal)."""
+    ``size`` bytes, ``data``: for the message of a refusal; ``restore``, ``max_work``: the restoration
+    of a box-mip file's level image, :func:`_box_restoration`)."""
     if header.transform == LOSSLESS:
         raise FormatError("a lossless .bdl file decodes at level 0 only (it codes no wavelet levels)")
     k = min(level, header.levels)
@@ -95,26 +116,38 @@ def level_image(header: Header, segments: tuple, level: int, size: int = 0, data
         block = np.ascontiguousarray(x[:h, :w])
         x[:h, :w] = apply_trees(block, header.levels - k, trees, debandeletize, header.transform_1d)
         channels.append(x)
+    found = {}
     if header.frames:  # back from the local frames, coarsest first (frames.to_global), the levels read
         for lev in range(header.levels, k, -1):
             args = (header.wavelet, header.levels, header.extension)
-            found = frames.level_frames(channels, lev, *args, header.kind)
-            frames.rotate(channels, found, lev, header.levels, header.normal_weight, local=False)
-    small = np.stack(
-        [
-            box_filtered(
-                coarse(
-                    x, header.wavelet, header.levels, k, header.extension, header.lifting, lifting or None
-                ),
-                header.wavelet,
-                k,
-            )
-            for x in channels
-        ]
-    )
+            found[lev] = frames.level_frames(channels, lev, *args, header.kind)
+            frames.rotate(channels, found[lev], lev, header.levels, header.normal_weight, local=False)
+    if has_box_levels(header):
+        bins = [q.reshape(shape) for q in quantized]
+        restored = _box_restoration(header, k, restore, max_work)
+        small = box_level(restored, trees, bins, [x[:h, :w] for x in channels], found, k)
+    else:
+        small = np.stack([_local_means(x, header, k, lifting) for x in channels])
     if header.riesz:
         small[0], small[1] = riesz.inverse(small[0], small[1], header.riesz)
     return _halved(_image(small, header, k), header, level - k)
+
+
+def _box_restoration(header: Header, k: int, restore: bool, max_work: int) -> Header:
+    """``header`` with the restoration of its level-``k`` image: none without ``restore``; the
+    file's iterations, refused (:func:`bandelets.format.limits.check_work`) above ``max_work``."""
+    if not restore:
+        return replace(header, restoration=0)
+    shape = padded_shape((header.height, header.width), header.levels)
+    check_work(replace(header, height=shape[0] >> k, width=shape[1] >> k, levels=header.levels - k), max_work)
+    return header
+
+
+def _local_means(x: np.ndarray, header: Header, k: int, lifting: list) -> np.ndarray:
+    """The level-``k`` image of the channel of dequantized coefficients ``x`` (overwritten) of a file
+    whose wavelet is not a box one: its approximation, filtered towards box averages."""
+    means = coarse(x, header.wavelet, header.levels, k, header.extension, header.lifting, lifting or None)
+    return box_filtered(means, header.wavelet, k)
 
 
 def _image(small: np.ndarray, header: Header, k: int) -> np.ndarray:
@@ -187,12 +220,12 @@ def _tile_bytes(data: bytes) -> list[bytes]:
     return [data[a:b] for a, b in zip(starts[:-1], starts[1:], strict=True)]
 
 
-def _tiles(data: bytes, level: int, max_memory: int, **limits) -> np.ndarray:
+def _tiles(data: bytes, level: int, max_memory: int, restore: bool, max_work: int, **limits) -> np.ndarray:
     """The image at ``level`` of a tiled file: every tile's, side by side."""
     grid, _ = read(data, **limits)
     images = []
     for (rows, cols), tile in zip(grid.boxes, _tile_bytes(data), strict=True):
-        image = _prefix_image(tile, level, max_memory, **limits)  # each tile's first bytes alone
+        image = _prefix_image(tile, level, max_memory, restore, max_work, **limits)  # its first bytes alone
         if image.shape[:2] != level_shape(rows.stop - rows.start, cols.stop - cols.start, level):
             raise FormatError(
                 f"corrupt .bdl file: a tile of {image.shape[1]} x {image.shape[0]} at level {level}"

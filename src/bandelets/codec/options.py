@@ -15,6 +15,7 @@ import numpy as np
 from ..format.checks import check_options
 from ..format.container import MIN_TILE
 from ..format.fields import (
+    BOX_WAVELETS,
     DEFAULT_NORMAL_WEIGHT,
     DEFAULT_TRANSFORM_1D,
     DEFAULT_WAVELET,
@@ -144,6 +145,15 @@ class EncodeOptions:
         (:data:`RIESZ_PAYS_BELOW`), or under a rate target where it nearly does, both files and
         the better kept (:data:`RIESZ_TRIAL_BELOW`), up to :data:`TRIAL_PIXELS` pixels and with
         cdf97. True: always (a Riesz pair is not lifted along directions); False: never.
+    box_mips : bool
+        Make the image each prefix of the file decodes to (``decode(data, level=k)``, format version
+        19) the ``2**k x 2**k`` box mip of the coded map, up to quantization: the wavelet becomes
+        one whose analysis low-pass is a box average (:data:`bandelets.format.fields.BOX_WAVELETS`:
+        ``rbio1.3`` in place of the default ``cdf97``; ``haar`` kept if given, any other refused) and a
+        normal map is coded as its three unit-vector channels (in local frames; no equidistant
+        coordinates, Riesz pair or directions, whose mean is not the mean of the vectors), so
+        that its level images are the renormalised box averages of its vectors, as a GPU mip chain
+        is made. Costs rate (BENCHMARKS, "Box mips from a prefix"; docs/gpu.md).
     effort : int
         How much the encoder tries, from 1 to 9 (default :data:`DEFAULT_EFFORT`): from
         :data:`FULL_TRIALS_FROM` a rate target encodes each alternative close to paying through a
@@ -185,6 +195,7 @@ class EncodeOptions:
     lossless: bool | None = None
     riesz: bool | None = None
     effort: int = DEFAULT_EFFORT
+    box_mips: bool = False
 
     def __post_init__(self) -> None:
         if self.lossless not in (None, True, False):
@@ -211,6 +222,8 @@ class EncodeOptions:
         if self.depth not in (0, 8, 16):
             raise ValueError(f"depth must be 0, 8 or 16, got {self.depth}")
         check_options(self.transform, self.wavelet, self.transform_1d, wavelets=(*WAVELETS, AUTO_WAVELET))
+        if self.box_mips:
+            self._box_wavelet()
         if self.lifting and (self.wavelet not in ("cdf97", AUTO_WAVELET) or self.kind == Kind.GEOMETRY_IMAGE):
             raise ValueError(
                 f"directional lifting needs the cdf97 wavelet and an image or a normal map, got "
@@ -232,6 +245,18 @@ class EncodeOptions:
         if not (np.isfinite(weight) and MIN_NORMAL_WEIGHT <= weight <= MAX_NORMAL_WEIGHT):
             raise ValueError(f"normal_weight must be from 1/64 to 64, got {weight}")
         check_extension((2, 2), "cdf97", 1, self.extension)
+
+    def _box_wavelet(self) -> None:
+        """With ``box_mips``: the wavelet made a box one, or ``ValueError`` for what cannot have box mips."""
+        if self.wavelet == DEFAULT_WAVELET:
+            object.__setattr__(self, "wavelet", BOX_WAVELETS[0])
+        if self.wavelet not in BOX_WAVELETS:
+            raise ValueError(
+                f"box_mips needs a wavelet whose analysis low-pass is a box ({', '.join(BOX_WAVELETS)}), "
+                f"got {self.wavelet}"
+            )
+        if self.riesz or self.lifting or self.extension != "symmetric":
+            raise ValueError("box_mips codes no Riesz pair, no directions and no spherical extension")
 
 
 def geometry_options(options: EncodeOptions, shape: tuple[int, int]) -> dict:

@@ -256,6 +256,8 @@ class _PieceEncoder:
             planes = (
                 normals.equidistant(reference)
                 if plan.equidistant
+                else normals.with_z(reference)  # x, y coded with their z (box mips)
+                if reference.ndim == 3 and reference.shape[-1] < plan.channels
                 else reference.reshape(plan.height, plan.width, -1)
             )
             self.measures.planes = np.ascontiguousarray(

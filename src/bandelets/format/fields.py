@@ -12,6 +12,7 @@ from enum import StrEnum
 from typing import Literal
 
 __all__ = [
+    "BOX_WAVELETS",
     "DEFAULT_NORMAL_WEIGHT",
     "DEFAULT_TRANSFORM_1D",
     "DEFAULT_WAVELET",
@@ -93,8 +94,9 @@ KIND_CODES = {Kind.IMAGE: 0, Kind.NORMAL_MAP: 1, Kind.GEOMETRY_IMAGE: 2}
 TRANSFORM_CODES = {"bandelet": 0, "wavelet": 1, "lossless": 2}
 #: The transform of a lossless file (:mod:`bandelets.coding.lossless`): not a choice of the lossy coder.
 LOSSLESS = "lossless"
-#: Wavelets (:mod:`bandelets.transform.wavelets`).
-WAVELET_CODES = {"cdf97": 0, "haar": 1, "db2": 2, "db4": 3, "db6": 4, "db8": 5}
+#: Wavelets (:mod:`bandelets.transform.wavelets`). ``rbio1.3`` added within version 19 (a decoder that
+#: predates it refuses such a file by its unknown wavelet code).
+WAVELET_CODES = {"cdf97": 0, "haar": 1, "db2": 2, "db4": 3, "db6": 4, "db8": 5, "rbio1.3": 6}
 #: 1D transforms along the directions (:mod:`bandelets.transform.bandeletize`).
 TRANSFORM_1D_CODES = {"haar": 0, "alpert2": 1}
 #: Boundary extensions of ``cdf97`` (geometry images only).
@@ -109,11 +111,14 @@ KINDS, WAVELETS, TRANSFORMS_1D, EXTENSIONS, LAYOUTS = map(
 #: The transforms of the lossy coder (``encode(transform=...)``).
 TRANSFORMS = tuple(t for t in TRANSFORM_CODES if t != LOSSLESS)
 # The same names as types, for signatures (tests/test_bitstream.py checks they agree).
-Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8"]
+Wavelet = Literal["cdf97", "haar", "db2", "db4", "db6", "db8", "rbio1.3"]
 Transform1D = Literal["haar", "alpert2"]
 #: The encoder's defaults (:class:`bandelets.codec.options.EncodeOptions`): the wavelet, the 1D transform,
 #: and the weight of the normal component of a geometry image in local frames.
 DEFAULT_WAVELET = "cdf97"
+#: The wavelets whose analysis low-pass is the box average of a pair: the approximation of ``k`` levels
+#: is the ``2**k x 2**k`` box average of the channel, a mip (``encode(box_mips=True)``, issue 39).
+BOX_WAVELETS = ("rbio1.3", "haar")
 DEFAULT_TRANSFORM_1D = "alpert2"
 DEFAULT_NORMAL_WEIGHT = 2.0
 #: Most wavelet decomposition levels a file may have.

@@ -41,7 +41,8 @@ how two channels are coded: equidistant coordinates for ``xyz``, ``x, y`` for th
 ``xyz`` three channels; ``xy`` two channels, ``x, y`` (z rebuilt); ``rg`` three channels of which
 only R and G were normal components (a BC5-style map whose blue holds something else, such as
 ambient occlusion): the decoder returns ``x, y, z``. The layouts other than ``xyz`` were added
-within version 6: a file of layout ``xyz`` is read by every version 6 decoder.
+within version 6: a file of layout ``xyz`` is read by every version 6 decoder. Within version 19 an
+``xy`` or ``rg`` map may be coded as ``x, y, z`` (``box_mips``): it decodes to its layout all the same.
 
 Geometry-image options (format version 2), right after the header's LEB128 integers in a file of
 kind 2::
@@ -294,8 +295,8 @@ def pack(header: Header, streams: tuple[bytes, bytes, bytes]) -> bytes:
         header.lifting + _riesz_code(header.riesz) + (128 if header.folded else 0),
         header.threshold,
     )
-    if header.layout != Layout.XYZ and (header.kind, header.channels) != (Kind.NORMAL_MAP, 2):
-        raise ValueError(f"layout {header.layout!r} is for normal maps coded as x, y: {header}")
+    if header.layout != Layout.XYZ and (header.kind != Kind.NORMAL_MAP or header.channels not in (2, 3)):
+        raise ValueError(f"layout {header.layout!r} is for normal maps: {header}")
     if header.folded and not _can_fold(
         header.kind, header.channels, header.transform, header.levels, header.height, header.width
     ):
@@ -363,7 +364,7 @@ def _consistency(
         (wavelet is not None, f"unknown wavelet code {wavelet_code}"),
         (depth is not None, f"bad sample depth code {depth_code}"),
         (
-            layout == Layout.XYZ or (layout is not None and kind == Kind.NORMAL_MAP and channels == 2),
+            layout == Layout.XYZ or (layout is not None and kind == Kind.NORMAL_MAP and channels in (2, 3)),
             f"bad layout code {layout_code} for a {kind} of {channels} channels",
         ),
         (along is not None, f"unknown 1D transform code {along_code}"),

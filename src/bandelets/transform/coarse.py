@@ -16,7 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from .directional import BLOCK, OFFSETS, SCALES, WEIGHTS
-from .lifting import cdf97_pass, directional_pass, haar_pass
+from .lifting import cdf97_pass, directional_pass, haar_pass, rbio13_pass
 from .wavelets import _LIFTED, _folds, _normalise, _pywt_rec, _raw_dec, _raw_rec, _swap_haar_details
 
 __all__ = ["box_filtered", "coarse"]
@@ -77,6 +77,9 @@ def _invert_to(c, wavelet, levels, level, extension, lifting, fields) -> None:
             _swap_haar_details(block)
             haar_pass(block, scratch, False)
             haar_pass(scratch.T, block.T, False)
+        elif wavelet == "rbio1.3":
+            rbio13_pass(block.T, scratch.T, False)
+            rbio13_pass(scratch, block, False)
         else:
             rows, cols = _folds(c.shape, lev, extension)
             cdf97_pass(block.T, scratch.T, False, cols, 1 << (lev - 1))

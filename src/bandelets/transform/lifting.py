@@ -446,6 +446,35 @@ def cdf97_pass(source: np.ndarray, target: np.ndarray, forward: bool, folds=None
         _merge(source, target, by_lines, False)
 
 
+@njit(cache=True, nogil=True)
+def _box_predict(x, by_lines, sign):
+    """``d_j += sign (s_(j+1) - s_(j-1)) / 8`` on every line of ``x`` (``s`` its first half, ``d`` its
+    second), ``s`` extended by half-sample symmetry (``s_-1 = s_0``, ``s_n = s_(n-1)``)."""
+    lines, n = x.shape[0], x.shape[1] // 2
+    if by_lines:
+        for i in range(lines):
+            for j in range(n):
+                x[i, n + j] += sign * (x[i, min(j + 1, n - 1)] - x[i, max(j - 1, 0)]) * 0.125
+    else:
+        for j in range(n):
+            for i in range(lines):
+                x[i, n + j] += sign * (x[i, min(j + 1, n - 1)] - x[i, max(j - 1, 0)]) * 0.125
+
+
+def rbio13_pass(source: np.ndarray, target: np.ndarray, forward: bool) -> None:
+    """One pass of the reverse biorthogonal 1.3 wavelet, as :func:`cdf97_pass`: the Haar pass of
+    :func:`haar_pass` (low ``(a + b) sqrt(1/2)``, a box average: no update step), then the high pass
+    predicted from the neighbouring low ones, ``d_j += (s_(j+1) - s_(j-1)) / 8``, which makes it blind
+    to quadratics (PyWavelets' ``rbio1.3`` away from the border, with symmetric extension)."""
+    by_lines = _by_lines(source)
+    if forward:
+        _split(source, target, by_lines, True)
+        _box_predict(target, by_lines, 1.0)
+    else:
+        _box_predict(source, by_lines, -1.0)
+        _merge(source, target, by_lines, True)
+
+
 def haar_pass(source: np.ndarray, target: np.ndarray, forward: bool) -> None:
     """One Haar pass (periodic: no extension), as :func:`cdf97_pass`: low ``(a + b) sqrt(1/2)``,
     high ``(a - b) sqrt(1/2)`` of every pair ``a, b`` (rounded as PyWavelets does)."""

@@ -14,6 +14,12 @@ Two families are offered:
   stay orthogonal: through :func:`pywt.wavedec2`, except Haar, lifted by
   :mod:`bandelets.transform.lifting` (the same coefficients to the last bit, without PyWavelets' cost
   per call).
+* ``"rbio1.3"``, lifted by :mod:`bandelets.transform.lifting` with symmetric extension (PyWavelets'
+  reverse biorthogonal 1.3 away from the border): a biorthogonal wavelet whose analysis low-pass is the
+  box average of a pair (as Haar's) and whose synthesis low-pass is smoother, so that the
+  approximation of ``k`` levels is the ``2**k x 2**k`` box mip of the channel (``encode(box_mips=True)``,
+  :mod:`bandelets.codec.boxlevels`). Its synthesis functions' norms are within 5 % of 1 and are taken
+  as 1.
 
 Coefficients are returned in the Mallat layout: one ``(H, W)`` array whose top-left
 ``H / 2**levels x W / 2**levels`` block is the approximation and where the detail subbands
@@ -145,6 +151,9 @@ def _lifting_dec(out: np.ndarray, wavelet: str, levels: int, extension: str = "s
             lifting.haar_pass(block.T, scratch.T, True)
             lifting.haar_pass(scratch, block, True)
             _swap_haar_details(block)
+        elif wavelet == "rbio1.3":
+            lifting.rbio13_pass(block, scratch, True)
+            lifting.rbio13_pass(scratch.T, block.T, True)
         else:
             rows, cols = _folds(out.shape, level, extension)
             lifting.cdf97_pass(block, scratch, True, rows, 1 << (level - 1))
@@ -164,6 +173,9 @@ def _lifting_rec(out: np.ndarray, wavelet: str, levels: int, extension: str = "s
             _swap_haar_details(block)
             lifting.haar_pass(block, scratch, False)
             lifting.haar_pass(scratch.T, block.T, False)
+        elif wavelet == "rbio1.3":
+            lifting.rbio13_pass(block.T, scratch.T, False)
+            lifting.rbio13_pass(scratch, block, False)
         else:
             rows, cols = _folds(out.shape, level, extension)
             lifting.cdf97_pass(block.T, scratch.T, False, cols, 1 << (level - 1))
@@ -206,7 +218,7 @@ def _pywt_rec(c: np.ndarray, wavelet: str, levels: int) -> np.ndarray:
 
 
 #: Wavelets lifted by :mod:`bandelets.transform.lifting`; the others go through PyWavelets.
-_LIFTED = ("cdf97", "haar")
+_LIFTED = ("cdf97", "haar", "rbio1.3")
 
 
 def _raw_dec(x: np.ndarray, wavelet: str, levels: int, extension: str) -> np.ndarray:
