@@ -222,7 +222,10 @@ class _PieceEncoder:
                 trials.append(Candidate(pair, levels, turn=sign))
             del pair
         self.coded = None
-        if trials and t is not None and options.effort < FULL_TRIALS_FROM:
+        # A loop per alternative compares restored files: without the restoration and the loop
+        # filter, the least cost at one threshold decides at every effort.
+        looped = options.effort >= FULL_TRIALS_FROM and (options.restore or options.loop_filter)
+        if trials and t is not None and not looped:
             candidate, trials = self._cheapest(candidate, trials, t), []
         self.candidate = candidate
         self._make_measures()
@@ -350,7 +353,7 @@ class _PieceEncoder:
         room = loopfilter.reserve(self.plan.channels) if options.loop_filter else 0
         aimed = self.candidate.lifting_levels or self.plan.pairable
         first = ratecontrol.first_threshold(target - room, self.t_max, self.model) if aimed else None
-        candidate, trials = self.choose(first, tries=options.restore or options.loop_filter)
+        candidate, trials = self.choose(first, tries=True)
         model = self.model
         if candidate.lifting is not None or candidate.turn:
             model = _lifted_model(candidate)
