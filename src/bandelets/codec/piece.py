@@ -30,7 +30,6 @@ from ..restore import loopfilter
 from ..runtime.progress import Progress
 from ..search import ratecontrol
 from ..search.basis import best_trees
-from ..search.lagrangian import LAMBDA
 from ..search.levelchoice import levels_to_try
 from ..search.treememo import TreeMemo
 from ..transform import normals
@@ -189,10 +188,14 @@ class _PieceEncoder:
     def _target_bytes(self, bpp: float) -> int:
         return int(bpp * self.plan.height * self.plan.width / 8)
 
-    def choose(self, t: float | None, tries: bool = False) -> tuple[Candidate, list[Candidate]]:
+    def choose(
+        self, t: float | None, tries: bool = False, target: int = 0
+    ) -> tuple[Candidate, list[Candidate]]:
         """The candidate coded, chosen for the threshold ``t`` (None: as it is), and those a rate
         target tries too (``tries``): lifted along directions where they pay (or nearly), the runner-up
-        count of levels, the Riesz pair where it pays (or nearly). Then the measures are made, and
+        count of levels, the Riesz pair where it pays (or nearly); below effort
+        :data:`FULL_TRIALS_FROM`, the one of them that promises most at ``target`` bytes
+        (:meth:`_cheapest`) is the candidate, and none is left to try. Then the measures are made, and
         the source is let go of where it is not measured again (one large array at a time: the
         peak of large images)."""
         plan, options, candidate = self.plan, self.options, self.candidate
@@ -226,27 +229,31 @@ class _PieceEncoder:
         # filter, the least cost at one threshold decides at every effort.
         looped = options.effort >= FULL_TRIALS_FROM and (options.restore or options.loop_filter)
         if trials and t is not None and not looped:
-            candidate, trials = self._cheapest(candidate, trials, t), []
+            candidate, trials = self._cheapest(candidate, trials, t, target), []
         self.candidate = candidate
         self._make_measures()
         return candidate, trials
 
-    def _cheapest(self, candidate: Candidate, trials: list[Candidate], t: float) -> Candidate:
-        """Of ``candidate`` and its ``trials``, the one whose wavelet file at ``t`` has the least
-        Lagrangian cost ``error + LAMBDA t**2 bits`` (the basis search's, at the slope the rate
-        target's threshold gives): a coded size and a quantization error each, 0.1 s at 512 x 512
-        instead of a rate-control loop with its restoration (0.8 to 1.2 s). Effort 8 keeps the loops
-        (``benchmarks/effort.py --all`` compares the two)."""
+    def _cheapest(self, candidate: Candidate, trials: list[Candidate], t: float, target: int) -> Candidate:
+        """Of ``candidate`` and its ``trials``, the one whose wavelet files promise the best PSNR at
+        ``target`` bytes: each coded at ``t`` and at a second threshold on the target's other side,
+        decoded without the restoration, its PSNR interpolated in log size (four wavelet files and
+        decodes of 512 x 512 take about the time of one bandelet encode; a rate-control loop per
+        alternative, restored, takes 0.8 to 1.2 s). Effort 8 keeps the loops (``benchmarks/effort.py
+        --all`` compares the two)."""
+        first: dict[int, Encoded] = {}
 
-        files = {}
+        def promised(choice: Candidate) -> float:
+            near = first[id(choice)] = self.encode_at(choice, t, "wavelet")
+            # A threshold 30 % away, on the target's other side: an interpolation, not a guess.
+            other = self.encode_at(choice, t * (1.3 if len(near.data) > target else 1 / 1.3), "wavelet")
+            points = [(math.log(len(e.data)), self.measure(self.decoded(e))) for e in (near, other)]
+            (x0, y0), (x1, y1) = points
+            return y0 if x0 == x1 else y0 + (y1 - y0) * (math.log(target) - x0) / (x1 - x0)
 
-        def cost(choice: Candidate) -> float:
-            files[id(choice)] = encoded = self.encode_at(choice, t, "wavelet")
-            return encoded.coefficient_sse + LAMBDA * t * t * 8 * len(encoded.data)
-
-        best = min([candidate, *trials], key=cost)
+        best = max([candidate, *trials], key=promised)
         # Rate control's probe is often this very file (its first threshold is ``t``).
-        self.probed = (t, files[id(best)])
+        self.probed = (t, first[id(best)])
         if best.turn and not candidate.turn:
             self.t_max = raised_t_max(best.coefficients, self.t_max)
         return best
@@ -274,7 +281,7 @@ class _PieceEncoder:
         # Rate control holds the source only where it measures a decoded image against it: a
         # quality target, or a measured encode without the restoration.
         if not (self.quality_target or (self.measured and not options.restore)):
-            self.reference = None
+            self.reference = self._psnr = None
 
     def encode_at(
         self, candidate: Candidate, t: float, transform: str | None = None, search=best_trees
@@ -353,7 +360,7 @@ class _PieceEncoder:
         room = loopfilter.reserve(self.plan.channels) if options.loop_filter else 0
         aimed = self.candidate.lifting_levels or self.plan.pairable
         first = ratecontrol.first_threshold(target - room, self.t_max, self.model) if aimed else None
-        candidate, trials = self.choose(first, tries=True)
+        candidate, trials = self.choose(first, tries=True, target=target - room)
         model = self.model
         if candidate.lifting is not None or candidate.turn:
             model = _lifted_model(candidate)
