@@ -172,7 +172,7 @@ class EncodeOptions:
     >>> EncodeOptions(wavelet="db3")
     Traceback (most recent call last):
     ...
-    ValueError: unknown wavelet 'db3'; choose one of cdf97, haar, db2, db4, db6, db8, auto
+    ValueError: unknown wavelet 'db3'; choose one of cdf97, haar, db2, db4, db6, db8, rbio1.3, auto
     """
 
     transform: str = "bandelet"
