@@ -167,7 +167,8 @@ def main(argv: list[str] | None = None) -> None:
         if name in earlier:
             line += f"; over the earlier run {bd(mine, earlier[name]):+.3f} dB"
         print(line, flush=True)
-        print("    AVIF's envelope: " + " ".join(f"{q:.2f} ({r:.3f})" for r, q in envelope(theirs)), flush=True)
+        hull = " ".join(f"{q:.2f} ({r:.3f})" for r, q in envelope(theirs))
+        print(f"    AVIF's envelope: {hull}", flush=True)
         for path, curves in ((args.save_avif, theirs_all), (args.save, ours_all)):
             if path:  # after every map, so that an interrupted run keeps what it made
                 path.parent.mkdir(parents=True, exist_ok=True)
