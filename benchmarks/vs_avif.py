@@ -21,8 +21,8 @@ renormalised, against the map's unit vectors (:func:`bandelets.metrics.psnr`, ``
   ``--option key=value`` (repeatable) adds a keyword (``effort=9``, ``wavelet=haar``);
 * AVIF at its strongest: every setting of :data:`bandelets.apps.anchors.AVIF_SETTINGS` (4:4:4,
   the identity matrix at speed 2 and YCbCr at speed 4) at every rate, as
-  :func:`bandelets.apps.anchors.encode` drives it, and the upper envelope of all these points (the
-  points no other point beats at a lower or equal rate) is AVIF's curve.
+  :func:`bandelets.apps.anchors.encode` drives it (the largest file not above the target), and at
+  each target the better of the two points is AVIF's curve (:func:`envelope`).
 
 Prints each map's points and its BD-PSNR over AVIF (on finite points: a lossless file is left out,
 as ``benchmarks/rd_defaults.py`` does), with ``--against`` over an earlier run's bandelets curve
@@ -117,12 +117,17 @@ def avif(vectors: np.ndarray, rates) -> list[tuple[float, float]]:
 
 
 def envelope(points) -> list[tuple[float, float]]:
-    """The points of ``points`` that no other beats (higher PSNR at a lower or equal rate), by rate."""
-    kept: list[tuple[float, float]] = []
-    for rate, quality in sorted(points, key=lambda p: (p[0], -p[1])):
-        if not kept or quality > kept[-1][1]:
-            kept.append((rate, quality))
-    return kept
+    """AVIF at its strongest: at each rate target, the better (higher PSNR) of the settings' points.
+
+    ``points`` holds the points of each setting of :data:`~bandelets.apps.anchors.AVIF_SETTINGS` in
+    turn, at the same targets (as :func:`avif` makes them). One point per target keeps the cubic fit
+    of the BD-PSNR on a curve of distinct rates (the points of two settings a few bytes apart
+    would make it swing).
+    """
+    settings = len(anchors.AVIF_SETTINGS)
+    count = len(points) // settings
+    per_target = zip(*(points[k * count : (k + 1) * count] for k in range(settings)), strict=True)
+    return [max(candidates, key=lambda p: p[1]) for candidates in per_target]
 
 
 def bd(a, b) -> float:
