@@ -27,7 +27,8 @@ renormalised, against the map's unit vectors (:func:`bandelets.metrics.psnr`, ``
 Prints each map's points and its BD-PSNR over AVIF (on finite points: a lossless file is left out,
 as ``benchmarks/rd_defaults.py`` does), with ``--against`` over an earlier run's bandelets curve
 too, the mean over the maps, and the CPU time of the bandelets encodes. AVIF's points take most of
-the time: ``--save-avif`` keeps them, ``--avif`` reads them back (for the same maps and rates).
+the time: ``--save-avif`` keeps them, ``--avif`` reads them back (for the same maps and rates);
+``--ours`` reads bandelets' points back from a ``--save`` (the table of a run again, no encoding).
 """
 
 from __future__ import annotations
@@ -157,14 +158,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--save-avif", type=Path, help="write AVIF's points here (JSON)")
     parser.add_argument("--save", type=Path, help="write bandelets' points here (JSON)")
     parser.add_argument("--against", type=Path, help="bandelets' points of an earlier --save")
+    parser.add_argument("--ours", type=Path, help="bandelets' points from an earlier --save (no encoding)")
     args = parser.parse_args(argv)
     options = dict(args.option)
     kept = json.loads(args.avif.read_text()) if args.avif else {}
     earlier = json.loads(args.against.read_text()) if args.against else {}
+    saved = json.loads(args.ours.read_text()) if args.ours else {}
     theirs_all, ours_all, gains, total = {}, {}, [], 0.0
     for name, vectors in maps(args.maps, args.real):
         theirs = [tuple(p) for p in kept[name]] if name in kept else avif(vectors, args.rates)
-        mine, seconds = ours(vectors, args.rates, options)
+        mine, seconds = (
+            ([tuple(p) for p in saved[name]], 0.0) if name in saved else ours(vectors, args.rates, options)
+        )
         theirs_all[name], ours_all[name], total = theirs, mine, total + seconds
         gains.append(bd(mine, envelope(theirs)))
         points = " ".join(f"{q:.2f} ({r:.3f})" for r, q in mine)
