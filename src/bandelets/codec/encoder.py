@@ -133,7 +133,7 @@ def encode_with_stats(
     if options.wavelet == AUTO_WAVELET:
         return _best_of_wavelets(array, options, measured=measured, **targets)
     tiled = tile_encoder.tiled(array, options)
-    if variants.applies(options, tiled):  # the highest effort: the hard-surface choices tried too
+    if unrestored is None and variants.applies(options, tiled):  # effort 9: the hard-surface choices too
         return variants.best_of_variants(array, options, encode_with_stats, measured=measured, **targets)
     if tiled:
         return tile_encoder.encode_tiles(array, options, measured=measured, **targets)
