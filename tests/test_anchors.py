@@ -79,3 +79,12 @@ def test_versions_name_the_libraries():
     names = {"jpeg2000": "openjpeg", "avif": "libavif", "jpegxl": "libjxl"}
     for codec, version in anchors.versions().items():
         assert version.startswith(names[codec]) and "imagecodecs" in version
+
+
+def test_each_avif_setting_meets_the_target_with_its_own_file(normals):
+    _need("avif")
+    files = [anchors.encode(normals, 2.0, "avif", "normal-map", avif=s) for s in anchors.AVIF_SETTINGS]
+    assert all(len(f) <= 2.0 * 64 * 64 / 8 for f in files)
+    assert files[0] != files[1]  # the YCbCr matrix and speed 4 make another file
+    for data in files:
+        assert psnr(normals, anchors.decode(data, "avif", normals, "normal-map"), "normal-map") > 25

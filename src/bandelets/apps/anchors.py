@@ -29,6 +29,7 @@ from ..transform.normals import unit_vectors
 
 __all__ = [
     "ANCHORS",
+    "AVIF_SETTINGS",
     "EXTENSIONS",
     "available",
     "decode",
@@ -46,6 +47,9 @@ ANCHORS = ("jpeg2000", "avif", "jpegxl")
 EXTENSIONS = {"jpeg2000": "j2k", "avif": "avif", "jpegxl": "jxl"}
 
 _AVIF_SPEED = 2
+#: AVIF's settings whose envelope is "AVIF at its strongest" on a normal map (issue 37): the
+#: identity matrix at speed 2 (:func:`encode`'s default) and YCbCr at speed 4, each best on some maps.
+AVIF_SETTINGS = (("identity", 2), ("ycbcr", 4))
 _JXL_EFFORT = 9
 _ITERATIONS = 24
 
@@ -102,7 +106,9 @@ def _from_samples(samples: np.ndarray, low: float, high: float, bits: int) -> np
     return low + samples.astype(np.float64) / (2**bits - 1) * (high - low)
 
 
-def _encode_once(codec: str, samples: np.ndarray, bits: int, quality: float, vectors: bool) -> bytes:
+def _encode_once(
+    codec: str, samples: np.ndarray, bits: int, quality: float, vectors: bool, avif: tuple[str, int]
+) -> bytes:
     import imagecodecs
 
     colour = samples.ndim == 3 and samples.shape[2] >= 3
@@ -112,13 +118,14 @@ def _encode_once(codec: str, samples: np.ndarray, bits: int, quality: float, vec
         )
     if codec == "avif":  # imagecodecs codes 1-channel input losslessly: give it 3 and keep Y
         formats = imagecodecs.AVIF.PIXEL_FORMAT
+        identity = colour and vectors and avif[0] == "identity"
         return imagecodecs.avif_encode(
             samples if colour else np.ascontiguousarray(np.repeat(samples[..., None], 3, axis=-1)),
             level=int(quality),
-            speed=_AVIF_SPEED,
+            speed=avif[1],
             bitspersample=bits,
             pixelformat=formats.YUV444 if colour else formats.YUV400,
-            matrix=imagecodecs.AVIF.MATRIX_COEFFICIENTS.IDENTITY if colour and vectors else None,
+            matrix=imagecodecs.AVIF.MATRIX_COEFFICIENTS.IDENTITY if identity else None,
         )
     return imagecodecs.jpegxl_encode(samples, distance=float(np.exp(-quality)), effort=_JXL_EFFORT)
 
@@ -157,7 +164,14 @@ _KNOBS = {
 }
 
 
-def encode(array: np.ndarray, bpp: float, codec: str, kind: str = "image", source_depth: int = 0) -> bytes:
+def encode(
+    array: np.ndarray,
+    bpp: float,
+    codec: str,
+    kind: str = "image",
+    source_depth: int = 0,
+    avif: tuple[str, int] = ("identity", _AVIF_SPEED),
+) -> bytes:
     """Encode ``array`` with an external codec into at most ``bpp`` bits per pixel.
 
     Bisection on the codec's quality knob finds the best quality whose file is not larger
@@ -172,6 +186,9 @@ def encode(array: np.ndarray, bpp: float, codec: str, kind: str = "image", sourc
     kind : {"image", "normal-map", "geometry-image"}
     source_depth : {0, 8, 16}
         Bit depth of the PNG the array came from (0: float).
+    avif : tuple of (str, int)
+        AVIF only: the colour matrix of vectors (``"identity"``, or ``"ycbcr"``: libavif's default)
+        and the encoder speed; one of :data:`AVIF_SETTINGS`.
 
     Returns
     -------
@@ -196,7 +213,7 @@ def encode(array: np.ndarray, bpp: float, codec: str, kind: str = "image", sourc
         if integer and high - low <= 1:
             break
         quality = (low + high) // 2 if integer else (low + high) / 2
-        data = _encode_once(codec, samples, bits, quality, kind != Kind.IMAGE)
+        data = _encode_once(codec, samples, bits, quality, kind != Kind.IMAGE, avif)
         if len(data) <= target:
             best = max(best, data, key=len)
             low = quality

@@ -20,7 +20,7 @@ from ..format.limits import OWN_FILE, check_encodable
 from ..format.samples import to_samples
 from ..runtime.blas import one_blas_thread
 from ..search.lagrangian import LAMBDA
-from . import normalmaps, tile_encoder
+from . import normalmaps, tile_encoder, variants
 from .at_threshold import Encoded
 from .decoder import decode
 from .options import AUTO_WAVELET, LOOP_FILTER_FROM, EncodeOptions
@@ -132,7 +132,10 @@ def encode_with_stats(
         options = replace(options, loop_filter=False)
     if options.wavelet == AUTO_WAVELET:
         return _best_of_wavelets(array, options, measured=measured, **targets)
-    if tile_encoder.tiled(array, options):
+    tiled = tile_encoder.tiled(array, options)
+    if unrestored is None and variants.applies(options, tiled):  # effort 9: the hard-surface choices too
+        return variants.best_of_variants(array, options, encode_with_stats, measured=measured, **targets)
+    if tiled:
         return tile_encoder.encode_tiles(array, options, measured=measured, **targets)
     return encode_piece(array, options, measured=measured, unrestored=unrestored, **targets)
 

@@ -158,9 +158,11 @@ class EncodeOptions:
         How much the encoder tries, from 1 to 9 (default :data:`DEFAULT_EFFORT`): from
         :data:`FULL_TRIALS_FROM` a rate target encodes each alternative close to paying through a
         rate-control loop of its own and keeps the better file; from :data:`TRIALS_FROM` it picks
-        among them from one wavelet file of each at one threshold; below, the estimates choose
-        alone; below :data:`LOOP_FILTER_FROM` no loop filter is fitted. The file's format is the
-        same at every effort.
+        among them the one whose wavelet files promise most at the target; below, the estimates
+        choose alone; below :data:`LOOP_FILTER_FROM` no loop filter is fitted; at 9 a normal map in
+        one piece is also coded with Haar along the directions and the directions forced, and the
+        better file kept (:mod:`bandelets.codec.variants`, twice the time). The file's format is
+        the same at every effort.
     mesh_vertices : int
         The vertex count of the mesh a geometry image was sampled from, which
         :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).
