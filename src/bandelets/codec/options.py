@@ -51,8 +51,8 @@ AUTO_WAVELET = "auto"
 DEFAULT_EFFORT = 7
 #: Effort from which a rate target also tries the alternatives whose estimate is close to paying
 #: (directions, a Riesz pair, a second count of levels: :mod:`bandelets.codec.alternatives`): each
-#: coded once as a wavelet file at the first threshold, the one of least Lagrangian cost kept for
-#: the rate-control loop. Below it the estimates decide alone.
+#: coded as wavelet files at two thresholds about the target and decoded, the one whose PSNR at the
+#: target is highest kept for the rate-control loop. Below it the estimates decide alone.
 TRIALS_FROM = 7
 #: Effort from which each alternative tried gets a rate-control loop of its own, its whole file
 #: restored and measured, and the better file is kept (three loops instead of one on the real maps
