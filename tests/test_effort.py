@@ -37,9 +37,9 @@ def _loops(monkeypatch, x, effort):
         loops.append(candidate)
         return search(self, candidate, *args)
 
-    def compared(self, candidate, trials, t):
+    def compared(self, candidate, trials, *args):
         weighed.append(1 + len(trials))
-        return cheapest(self, candidate, trials, t)
+        return cheapest(self, candidate, trials, *args)
 
     monkeypatch.setattr(piece._PieceEncoder, "_search_size", counted)
     monkeypatch.setattr(piece._PieceEncoder, "_cheapest", compared)
