@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 
 import bandelets
+from bandelets.codec.options import FULL_TRIALS_FROM
 from bandelets.metrics import psnr
 from bandelets.samples import bump_normal_map, crease_normal_map
 from bandelets.search import ratecontrol
@@ -104,15 +105,19 @@ def test_a_rate_target_tries_the_directions_that_nearly_pay(monkeypatch):
     search = ratecontrol.for_size
     monkeypatch.setattr(ratecontrol, "for_size", lambda *a, **k: searches.append(1) or search(*a, **k))
     # The crease map at 128 and 0.7 bpp: directions cost 0.95 of the plain wavelets' estimate,
-    # above what pays, below TRIAL_BELOW: both files are made and the better kept.
+    # above what pays, below TRIAL_BELOW: from FULL_TRIALS_FROM both files are made and the better
+    # kept; at the default effort, the one the weighing picks is the only one made, and the same.
     crease = crease_normal_map(128)
     # The channels as they are: their Riesz pair may be tried too (test_riesz.py).
-    kept = bandelets.encode(crease, bpp=0.7, kind="normal-map", riesz=False)
+    kept = bandelets.encode(crease, bpp=0.7, kind="normal-map", riesz=False, effort=FULL_TRIALS_FROM)
     assert len(searches) == 2 and 8 * len(kept) <= 0.7 * 128 * 128
     best = psnr(crease, bandelets.decode(kept), "normal-map")
     for lifting in (True, False):
         other = bandelets.encode(crease, bpp=0.7, kind="normal-map", lifting=lifting, riesz=False)
         assert best >= psnr(crease, bandelets.decode(other), "normal-map")
+    searches.clear()
+    assert bandelets.encode(crease, bpp=0.7, kind="normal-map", riesz=False) == kept
+    assert len(searches) == 1
     # Smooth bumps (a ratio of 1.00) are not tried; nor a lifting asked for or refused.
     searches.clear()
     bandelets.encode(bump_normal_map(128), bpp=1.0, kind="normal-map", riesz=False)
