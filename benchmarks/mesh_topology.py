@@ -56,30 +56,6 @@ def made(name: str):
     return trimesh.util.concatenate([sphere, other])
 
 
-def topology(mesh) -> tuple[int, int]:
-    """Components and boundary loops of ``mesh`` welded by position."""
-    import trimesh
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    welded.merge_vertices(merge_tex=True, merge_norm=True)
-    faces = np.asarray(welded.faces)
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    n = len(welded.vertices)
-    graph = coo_matrix((np.ones(len(unique)), (unique[:, 0], unique[:, 1])), shape=(n, n))
-    used = np.unique(faces)
-    labels = connected_components(graph, directed=False)[1]
-    components = np.unique(labels[used]).size
-    border = unique[counts == 1]
-    if len(border) == 0:
-        return components, 0
-    graph = coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])), shape=(n, n))
-    labels = connected_components(graph, directed=False)[1]
-    return components, np.unique(labels[np.unique(border)]).size
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", nargs="*", default=["fertility.off", "rocker-arm.obj", *MADE])
@@ -98,7 +74,7 @@ def main() -> None:
             print(f"| {name} | absent ({MESHES}) |")
             continue
         n_vertices = len(mesh.vertices)
-        topo_in = topology(mesh)
+        topo_in = metrics.topology(mesh)[1:]
         for bits in (6, 7):
             reference = draco._encode_once(np.asarray(mesh.vertices), np.asarray(mesh.faces, np.uint32), bits)
             theirs = metrics.hausdorff_psnr(mesh, draco.decode(reference))
@@ -107,7 +83,7 @@ def main() -> None:
             seconds = time.perf_counter() - start
             decoded = codec.decode_mesh(data)
             ours = metrics.hausdorff_psnr(mesh, decoded)
-            topo_out = topology(decoded)
+            topo_out = metrics.topology(decoded)[1:]
             route = "charts" if data[:4] == b"BDLC" else "sphere"
             print(
                 f"| {name} | {n_vertices} | {route} | {bits} | {8 * len(reference) / n_vertices:.2f} | "

@@ -16,26 +16,6 @@ from bandelets.apps.cli import main  # noqa: E402
 from bandelets.surfaces import chartcodec, metrics, repair  # noqa: E402
 
 
-def _welded(mesh) -> tuple[int, int, int]:
-    """Vertices, components and boundary loops of ``mesh`` welded by position."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    welded.merge_vertices()
-    faces = np.asarray(welded.faces)
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    n = len(welded.vertices)
-
-    def count(pairs):
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        labels = connected_components(graph, directed=False)[1]
-        return np.unique(labels[np.unique(pairs)]).size if len(pairs) else 0
-
-    return n, count(unique), count(unique[counts == 1])
-
-
 def _round_trip(tmp_path, capsys, mesh, suffix: str, bits_per_vertex: float):
     """``mesh`` written as ``suffix``, then mesh-encode, info and mesh-decode: the decoded mesh,
     the summary line and the info."""
@@ -66,7 +46,7 @@ def test_stl_round_trip_of_an_open_mesh(tmp_path, capsys):
     assert info["representation"] in ("multi-chart geometry image", "draco")
     assert f"{len(cut.vertices)} vertices" in summary
     assert len(decoded.faces) == len(cut.faces)
-    assert _welded(decoded) == (len(cut.vertices), 1, 1)
+    assert metrics.topology(decoded) == (len(cut.vertices), 1, 1)
     assert metrics.hausdorff_psnr(cut, decoded, samples=20_000) > 45
 
 
@@ -76,7 +56,7 @@ def test_gltf_round_trip_of_two_parts(tmp_path, capsys, suffix):
     both = trimesh.util.concatenate([first, trimesh.creation.icosphere(2).apply_translation([3.0, 0, 0])])
     decoded, _, info = _round_trip(tmp_path, capsys, both, suffix, 24)
     assert info["vertices"] == len(both.vertices) and info["faces"] == len(both.faces)
-    assert _welded(decoded) == (len(both.vertices), 2, 0)
+    assert metrics.topology(decoded) == (len(both.vertices), 2, 0)
     assert metrics.hausdorff_psnr(both, decoded, samples=20_000) > 45
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from .meshlab import confined
 
-__all__ = ["SAMPLES", "hausdorff_psnr", "rms_hausdorff"]
+__all__ = ["SAMPLES", "hausdorff_psnr", "rms_hausdorff", "topology"]
 
 SAMPLES = 200_000  # face samples on each mesh, besides its vertices
 
@@ -83,3 +83,28 @@ def hausdorff_psnr(reference, decoded, samples: int = SAMPLES) -> float:
     distance = rms_hausdorff(reference, decoded, samples)
     peak = float(np.linalg.norm(reference.bounds[1] - reference.bounds[0]))
     return float("inf") if distance == 0 else 20.0 * np.log10(peak / distance)
+
+
+def topology(mesh) -> tuple[int, int, int]:
+    """Vertices, connected components and boundary loops of ``mesh`` (a ``trimesh.Trimesh``, or
+    anything with ``vertices`` and ``faces``) welded by position: what a mesh codec must keep of
+    a surface whose files split its vertices along UV seams (issue 38)."""
+    import trimesh
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    welded.merge_vertices(merge_tex=True, merge_norm=True)
+    faces = np.asarray(welded.faces)
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    n = len(welded.vertices)
+
+    def linked(pairs: np.ndarray) -> int:  # connected groups of the vertices of these edges
+        if len(pairs) == 0:
+            return 0
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        labels = connected_components(graph, directed=False)[1]
+        return int(np.unique(labels[np.unique(pairs)]).size)
+
+    return n, linked(unique), linked(unique[counts == 1])
