@@ -22,35 +22,30 @@ from bandelets import decode, encode
 from bandelets.apps import anchors
 from bandelets.codec.levels import level_bytes
 from bandelets.io.gpu import mip_chain
+from bandelets.metrics import angles
 from bandelets.samples import bump_normal_map, crease_normal_map
+from bandelets.transform.normals import unit_vectors
 
 #: Shared maps whose blue is not z (BENCHMARKS.md: the acacia door's holds occlusion).
 RG = ("acacia_door_bottom_n.png",)
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "normal-maps"
 
 
-def unit3(v: np.ndarray) -> np.ndarray:
-    if v.shape[-1] == 2:
-        v = np.dstack([v, np.sqrt(np.clip(1 - (v**2).sum(-1), 0, None))])
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
 def angle(a: np.ndarray, b: np.ndarray) -> float:
     h, w = min(a.shape[0], b.shape[0]), min(a.shape[1], b.shape[1])
-    dots = (unit3(a)[:h, :w] * unit3(b)[:h, :w]).sum(-1)
-    return float(np.degrees(np.arccos(np.clip(dots, -1, 1))).mean())
+    return float(angles(a[:h, :w], b[:h, :w]).mean())
 
 
 def load(name: str, size: int) -> np.ndarray:
     if name == "bumps":
-        return unit3(bump_normal_map(size or 512))
+        return unit_vectors(bump_normal_map(size or 512))
     if name == "crease":
-        return unit3(crease_normal_map(size or 512))
+        return unit_vectors(crease_normal_map(size or 512))
     rgb = iio.imread(DATA / name)[..., :3].astype(np.float64)
     rgb = rgb / (65535 if rgb.max() > 255 else 255) * 2 - 1
     if name in RG:  # its blue holds occlusion: x, y are red and green, z rebuilt
         rgb = rgb[..., :2]
-    return unit3(rgb if not size else rgb[:size, :size])
+    return unit_vectors(rgb if not size else rgb[:size, :size])
 
 
 def table(names: list[str], rates: list[float], size: int) -> None:

@@ -14,19 +14,15 @@ from bandelets.apps.cli import main
 from bandelets.codec.levels import level_bytes
 from bandelets.format.header import unpack
 from bandelets.io.gpu import mip_chain
+from bandelets.metrics import angles
 from bandelets.samples import crease_normal_map
+from bandelets.transform.normals import unit_vectors
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "normal-maps"
 
 
-def unit3(v: np.ndarray) -> np.ndarray:
-    if v.shape[-1] == 2:
-        v = np.dstack([v, np.sqrt(np.clip(1 - (v**2).sum(-1), 0, None))])
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
 def mean_angle(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((unit3(a) * unit3(b)).sum(-1), -1, 1))).mean())
+    return float(angles(a, b).mean())
 
 
 def box(x: np.ndarray, k: int) -> np.ndarray:
@@ -36,13 +32,13 @@ def box(x: np.ndarray, k: int) -> np.ndarray:
 
 def source(name: str) -> np.ndarray:
     if name == "crease":
-        return unit3(crease_normal_map(128))
+        return unit_vectors(crease_normal_map(128))
     path = REAL / "godot_scifi_vent_decal_512.png"
     if not path.is_file():
         pytest.skip(f"{path} is absent (the shared data beside the checkout)")
     import imageio.v3 as iio
 
-    return unit3(iio.imread(path)[:256, :256, :3].astype(np.float64) / 255 * 2 - 1)
+    return unit_vectors(iio.imread(path)[:256, :256, :3].astype(np.float64) / 255 * 2 - 1)
 
 
 def gaps(x: np.ndarray, data: bytes) -> list[float]:
@@ -84,7 +80,7 @@ def test_a_default_file_misses_it_on_the_crease_map() -> None:
 def test_unrestored_level_images_are_the_box_means_of_the_decode(restore) -> None:
     # An image (no renormalisation) decoded without restoration, of a file with and without it: the
     # prefix's image at level k is the 2^k x 2^k box average of the decoded image, to rounding.
-    x = unit3(crease_normal_map(64))
+    x = unit_vectors(crease_normal_map(64))
     data = encode(x, bpp=1.0, box_mips=True, restore=restore, loop_filter=False)
     assert (unpack(data)[0].restoration > 0) == restore
     full, needs = decode(data, restore=False), level_bytes(data)
@@ -94,7 +90,7 @@ def test_unrestored_level_images_are_the_box_means_of_the_decode(restore) -> Non
 
 
 def test_haar_is_kept_and_two_channel_maps_keep_their_layout() -> None:
-    xy = unit3(crease_normal_map(64))[..., :2]
+    xy = unit_vectors(crease_normal_map(64))[..., :2]
     data = encode(xy, bpp=1.0, kind="normal-map", box_mips=True, wavelet="haar")
     header = unpack(data)[0]
     assert (header.wavelet, header.channels, header.layout) == ("haar", 3, "xy")

@@ -19,7 +19,9 @@ from bandelets.codec.levels import level_bytes
 from bandelets.format.fields import FormatError
 from bandelets.format.header import unpack
 from bandelets.io.gpu import mip_chain
+from bandelets.metrics import angles
 from bandelets.samples import bump_normal_map
+from bandelets.transform.normals import unit_vectors
 
 REAL = (
     Path(__file__).resolve().parents[1]
@@ -31,14 +33,8 @@ REAL = (
 )
 
 
-def unit3(v: np.ndarray) -> np.ndarray:
-    if v.shape[-1] == 2:
-        v = np.dstack([v, np.sqrt(np.clip(1 - (v**2).sum(-1), 0, None))])
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
 def mean_angle(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((unit3(a) * unit3(b)).sum(-1), -1, 1))).mean())
+    return float(angles(a, b).mean())
 
 
 def real_map() -> np.ndarray:
@@ -47,7 +43,7 @@ def real_map() -> np.ndarray:
     import imageio.v3 as iio
 
     rgb = iio.imread(REAL)[:256, :256, :3].astype(np.float64) / 255 * 2 - 1
-    return unit3(rgb)
+    return unit_vectors(rgb)
 
 
 @pytest.fixture(scope="module", params=["generated", "real"])

@@ -228,7 +228,7 @@ class _PieceEncoder:
         # A loop per alternative compares restored files: without the restoration and the loop
         # filter, the least cost at one threshold decides at every effort.
         looped = options.effort >= FULL_TRIALS_FROM and (options.restore or options.loop_filter)
-        if trials and t is not None and not looped:
+        if trials and t is not None and target > 0 and not looped:
             candidate, trials = self._cheapest(candidate, trials, t, target), []
         self.candidate = candidate
         self._make_measures()
