@@ -68,16 +68,18 @@ REAL = (
     "boombox_2048",
 )
 #: ``--stages``: the encoder's stages, each the functions (by name) whose cumulative time it is.
-#: Rate control is the whole of the encodes it makes, the direction search of the squares and the
-#: coding within it (the other stages are not: "rest" is what none of them holds).
+#: Rate control is the whole of its loop (its encodes, the restoration search and the loop filter's fit
+#: of the file kept); the "of which" stages are parts of it or of the other stages (the direction search
+#: of the squares and the coding run wherever a file is made); "rest" is what no other stage holds.
 STAGES = {
-    "rate control (its encodes)": ("encode_at",),
+    "rate control (its encodes)": ("_search_size",),
     "of which direction search (squares)": ("best_directions",),
-    "lifting directions": ("_lifted",),
-    "Riesz pair choice": ("_riesz_pair",),
     "of which coding": ("code_image", "code_lifting"),
-    "restoration search": ("_with_restoration",),
-    "loop filter": ("_with_loop_filter",),
+    "of which restoration search": ("with_restoration",),
+    "of which loop filter": ("with_loop_filter",),
+    "lifting directions": ("lifted",),
+    "Riesz pair choice": ("riesz_pair",),
+    "weighing the alternatives": ("_cheapest",),
     "level choice": ("levels_to_try",),
     "lossless try": ("_lossless",),
 }
@@ -184,7 +186,7 @@ def _stages(encode) -> str:
     encodes = of("encode_at_threshold", column=0) - of("_probe", column=0)
     return (
         f"stages of a profiled encode (CPU {total:.2f} s, wall {wall:.2f} s), CPU: {parts}, "
-        f"rest {rest:.2f} s; {of('for_size', column=0):.0f} rate-control loops, {encodes:.0f} full "
+        f"rest {rest:.2f} s; {of('_search_size', column=0):.0f} rate-control loops, {encodes:.0f} full "
         f"encodes and {of('_probe', column=0):.0f} wavelet probes"
     )
 

@@ -7,6 +7,7 @@ The encoder chooses the number of restoration iterations with :func:`restoration
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 from itertools import islice
 
 import numpy as np
@@ -33,7 +34,7 @@ from ..restore import loopfilter, restoration
 from ..restore.precisions import compile_both
 from ..runtime.blas import one_blas_thread
 from ..runtime.progress import Progress
-from ..runtime.threads import CORES, thread_map, workers
+from ..runtime.threads import each, thread_map
 from ..transform import directional, frames, riesz
 from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
@@ -46,6 +47,7 @@ __all__ = [
     "decode",
     "decode_parsed",
     "decoded_bins",
+    "decoded_from_bins",
     "restorations",
     "channel_transforms",
     "decoded_image",
@@ -177,7 +179,15 @@ def decode_parsed(
         header = replace(header, restoration=0, loop_filter=None)
     check_memory(header, max_memory)
     check_work(header, max_work)
-    trees, quantized, lifting = decoded_bins(header, streams)
+    return decoded_from_bins(header, *decoded_bins(header, streams))
+
+
+def decoded_from_bins(
+    header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None
+) -> np.ndarray:
+    """The image of the quadtrees, bins and directions a file holds (:func:`decoded_bins`), restored
+    and filtered as its ``header`` says: the decoder after the range decoding, which an encoder that
+    has the bins it coded skips."""
     channels = next(islice(restorations(header, trees, quantized, lifting), header.restoration, None))
     if header.loop_filter is not None:
         channels = loopfilter.apply(
@@ -227,16 +237,8 @@ THREADS_FROM = 512 * 512
 def _channel_map(header: Header):
     """``each(function, channels)``, the list of ``function(channel)``: from :data:`THREADS_FROM`
     pixels on, the first channel in the calling thread and the others in the process's worker
-    threads (:func:`bandelets.restore.restoration.workers`, not new threads at every decode)."""
-    if header.channels < 2 or header.height * header.width < THREADS_FROM or CORES < 2:
-        return lambda function, channels: [function(channel) for channel in channels]
-
-    def each(function, channels):
-        first, *others = channels
-        futures = [workers().submit(function, channel) for channel in others]
-        return [function(first), *(future.result() for future in futures)]
-
-    return each
+    threads (:func:`bandelets.runtime.threads.each`)."""
+    return partial(each, threaded=header.height * header.width >= THREADS_FROM)
 
 
 def channel_transforms(header: Header, trees: list, quantized: list[np.ndarray], lifting: list | None = None):

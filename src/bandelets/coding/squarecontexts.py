@@ -54,6 +54,10 @@ def _hints(out, known, width, top, left, sizes, dirs, sibling, parent, orders, m
     subbands in the raveled layout ``known`` of ``width`` columns, or empty."""
     most = MAX_WIDTH * MAX_WIDTH
     v, tmp, predicted = np.empty(most), np.empty(most), np.empty(most)
+    # The largest parent magnitude (capped at 2) over each dyadic group of the reordered samples,
+    # as a heap: node 1 the whole square, nodes 2 g and 2 g + 1 the halves of node g, leaves n + t.
+    # Each coefficient's support is one node: O(n) a square, not O(k n log n) for the scans.
+    largest = np.empty(2 * most, np.int64)
     i = 0
     for s in range(top.shape[0]):
         size = sizes[s]
@@ -67,6 +71,13 @@ def _hints(out, known, width, top, left, sizes, dirs, sibling, parent, orders, m
                 x = (abs(q) + RECONSTRUCTION) if q != 0 else 0.0
                 v[t] = x if q > 0 else -x
             multiwavelet(v[:n], tmp[:n], predicted[:n], mats[j_width])
+        if parent.size:
+            for t in range(n):
+                r = (top[s] + order[t] // size) // 2
+                c = (left[s] + order[t] % size) // 2
+                largest[n + t] = min(abs(known[(parent[0] + r) * width + parent[1] + c]), 2)
+            for node in range(n - 1, 0, -1):
+                largest[node] = max(largest[2 * node], largest[2 * node + 1])
         for j in range(n):
             if sibling.size:
                 p = abs(predicted[j])
@@ -78,19 +89,11 @@ def _hints(out, known, width, top, left, sizes, dirs, sibling, parent, orders, m
             if parent.size:
                 # Support of coefficient j: the whole square for the k scaling functions, else
                 # group g of the 2**scale groups of n / 2**scale reordered samples.
-                first, count = 0, n
+                node = 1
                 if j >= k:
                     scale = int(np.log2(j // k))
-                    count = n >> scale
-                    first = ((j - (k << scale)) // k) * count
-                largest = 0
-                for t in range(first, first + count):
-                    r = (top[s] + order[t] // size) // 2
-                    c = (left[s] + order[t] % size) // 2
-                    largest = max(largest, abs(known[(parent[0] + r) * width + parent[1] + c]))
-                    if largest >= 2:
-                        break
-                above = min(largest, 2)
+                    node = (1 << scale) + (j - (k << scale)) // k
+                above = largest[node]
             else:
                 above = _N_PARENT - 1
             out[i + j] = bucket * _N_PARENT + above + (SQUARE_START if j == 0 else 0)

@@ -5,14 +5,13 @@ pair codes or the slopes alone, and at how many levels.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
 from ..coding.directions import N_CONTEXTS, code_fields
 from ..coding.rangecoder import Coder
 from ..format.fields import MAX_LIFTING
 from ..format.quantizer import dequantize, quantize
+from ..runtime.threads import each
 from ..transform.directional import (
     BLOCK,
     OFFSETS,
@@ -128,10 +127,7 @@ def first_costs(blocks: list[np.ndarray], threshold: float, n: int | None = None
     def bits(x: np.ndarray) -> np.ndarray:
         return direction_costs(x, OFFSETS[:n], WEIGHTS[:n], SCALES[:n], BLOCK, threshold)
 
-    if len(blocks) > 1 and blocks[0].size >= THREADS_FROM:  # the channels in threads (nogil kernels)
-        with ThreadPoolExecutor(max_workers=len(blocks)) as pool:
-            return sum(pool.map(bits, blocks))
-    return sum(map(bits, blocks))
+    return sum(each(bits, blocks, threaded=blocks[0].size >= THREADS_FROM))  # nogil kernels
 
 
 def pays(
@@ -204,11 +200,16 @@ def cost(
         synthesise = lambda c: synthesis(c, levels, lifting, fields)  # noqa: E731
     coder = Coder(N_CONTEXTS)
     code_fields(coder, side, channels[0].shape, lifting, 0)
-    bits = 8.0 * len(coder.finish())
-    error = 0.0
-    for x, c in zip(channels, coefficients, strict=True):
-        bits += float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
-        error += float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
+
+    def bits_and_error(k: int) -> tuple[float, float]:
+        x, c = channels[k], coefficients[k]
+        bits = float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
+        return bits, float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
+
+    parts = each(bits_and_error, range(len(channels)), threaded=channels[0].size >= THREADS_FROM)
+    bits, error = 8.0 * len(coder.finish()), 0.0
+    for b, e in parts:  # summed in the channels' order, as before the threads: the same choices
+        bits, error = bits + b, error + e
     return error + LAMBDA * threshold**2 * bits
 
 
