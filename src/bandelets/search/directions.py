@@ -201,15 +201,11 @@ def cost(
     coder = Coder(N_CONTEXTS)
     code_fields(coder, side, channels[0].shape, lifting, 0)
 
-    def bits_and_error(k: int) -> tuple[float, float]:
-        x, c = channels[k], coefficients[k]
-        bits = float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
-        return bits, float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
-
-    parts = each(bits_and_error, range(len(channels)), threaded=channels[0].size >= THREADS_FROM)
-    bits, error = 8.0 * len(coder.finish()), 0.0
-    for b, e in parts:  # summed in the channels' order, as before the threads: the same choices
-        bits, error = bits + b, error + e
+    bits = 8.0 * len(coder.finish())
+    error = 0.0
+    for x, c in zip(channels, coefficients, strict=True):
+        bits += float(np.sum(np.log2(1.0 + np.abs(c) * (2.0 / threshold))))
+        error += float(np.sum((synthesise(dequantize(quantize(c, threshold), threshold)) - x) ** 2))
     return error + LAMBDA * threshold**2 * bits
 
 

@@ -46,7 +46,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..runtime.threads import each
 from .lifting import ALPHA, BETA, DELTA, GAMMA, cdf97_pass, directional_pass
 from .wavelets import _normalise
 
@@ -95,9 +94,6 @@ LEVELS = 2
 #: Side of a block of one direction, in samples of the pass's input (rows; half as many
 #: columns of each output band).
 BLOCK = 8
-#: Samples of a pass (or of an image, for the plain levels) from which :func:`analysis` transforms
-#: the channels in the process's worker threads (:func:`bandelets.runtime.threads.each`).
-THREADS_FROM = 256 * 256
 
 
 def _block_shape(shape: tuple[int, int]) -> tuple[int, int]:
@@ -151,7 +147,6 @@ def analysis(
     outs = [np.array(x, dtype=np.float64, order="C") for x in channels]
     works = [np.empty_like(o) for o in outs]
     shape = outs[0].shape
-    large = shape[0] * shape[1] >= THREADS_FROM
     chosen = []
     for i, (level, p, _) in enumerate(_passes(shape, lifting)):
         h, w = shape[0] >> (level - 1), shape[1] >> (level - 1)
@@ -162,15 +157,12 @@ def analysis(
         else:
             codes = choose(i, sources)
         chosen.append(codes)
-        targets = [k[:h, :w] if p == 0 else o[:h, :w].T for o, k in zip(outs, works, strict=True)]
-        each(
-            lambda c, codes=codes, sources=sources, targets=targets: directional_pass(
-                sources[c], targets[c], True, codes, OFFSETS, WEIGHTS, SCALES, BLOCK
-            ),
-            range(len(outs)),
-            threaded=h * w >= THREADS_FROM,
-        )
-    each(lambda c: _plain(outs[c], works[c], levels, lifting, True), range(len(outs)), threaded=large)
+        for o, k, source in zip(outs, works, sources, strict=True):
+            directional_pass(
+                source, k[:h, :w] if p == 0 else o[:h, :w].T, True, codes, OFFSETS, WEIGHTS, SCALES, BLOCK
+            )
+    for o, k in zip(outs, works, strict=True):
+        _plain(o, k, levels, lifting, True)
     return outs, chosen
 
 
