@@ -76,12 +76,13 @@ def lifted(
     channels = padded_channels(coded, levels)
     lifted, fields, lifting_levels, cost = directions.lift(channels, levels, lifting_levels, threshold)
     frames = len(channels) == 3  # a normal map's three channels are coded in local frames
-    if not check or directions.pays(
-        channels, lifted, fields, levels, lifting_levels, threshold, frames, plain, cost
-    ):
+    if not check:
         return lifted, fields, lifting_levels, None
-    close = directions.cost_ratio(channels, lifted, fields, levels, lifting_levels, threshold, plain, cost)
-    return plain, None, 0, (lifted, fields, lifting_levels) if close < TRIAL_BELOW else None
+    # One ratio for both questions (the plain coefficients' cost is a synthesis of the image).
+    ratio = directions.cost_ratio(channels, lifted, fields, levels, lifting_levels, threshold, plain, cost)
+    if directions.ratio_pays(ratio, frames):
+        return lifted, fields, lifting_levels, None
+    return plain, None, 0, (lifted, fields, lifting_levels) if ratio < TRIAL_BELOW else None
 
 
 def with_levels(

@@ -35,6 +35,7 @@ __all__ = [
     "cost_ratio",
     "lift",
     "pays",
+    "ratio_pays",
 ]
 
 
@@ -156,8 +157,14 @@ def pays(
     ``plain``: the CDF 9/7 coefficients of ``channels`` when the caller has them (else made again);
     ``lifted_cost``: the :func:`cost` of ``lifted`` when the caller has it (:func:`lift`).
     """
-    below = PAYS_BELOW_FRAMES if frames else PAYS_BELOW
-    return cost_ratio(channels, lifted, fields, levels, lifting, threshold, plain, lifted_cost) < below
+    ratio = cost_ratio(channels, lifted, fields, levels, lifting, threshold, plain, lifted_cost)
+    return ratio_pays(ratio, frames)
+
+
+def ratio_pays(ratio: float, frames: bool = False) -> bool:
+    """Whether directions of :func:`cost_ratio` ``ratio`` pay (:func:`pays`, for a caller that has the
+    ratio)."""
+    return ratio < (PAYS_BELOW_FRAMES if frames else PAYS_BELOW)
 
 
 def cost_ratio(
