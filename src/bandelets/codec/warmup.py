@@ -35,13 +35,36 @@ _NAMES = ("lifted", "filtered", "riesz", "lossless")
 
 
 def warm_up() -> None:
-    """Decode every file of :data:`FILES` (with and without the restoration, and at level 1)."""
+    """Compile the kernels the encoder reaches last (:func:`_late_kernels`), then decode every file of
+    :data:`FILES` (with and without the restoration, and at level 1)."""
+    _late_kernels()
     for name in _NAMES:
         data = (FILES / f"{name}.bdl").read_bytes()
         decode(data)
         if name != "lossless":
             decode(data, restore=False)
             decode(data, level=1)
+
+
+def _late_kernels() -> None:
+    """The kernels a first encode reaches last, run once on small arrays: the restoration in both
+    precisions and the Riesz pair's rotation, the loop filter's fit and filter, the bandelet search
+    of the squares (serial and parallel). Decoding the files first would compile the coders, which
+    the encoder needs at once and compiles itself meanwhile: the same kernel compiled twice, while
+    the encoder's later ones wait (a first encode of a 512 x 512 map: BENCHMARKS, "The first run")."""
+    import numpy as np
+
+    from ..restore import loopfilter
+    from ..restore.precisions import compile_both
+    from ..search.lagrangian import best_directions
+
+    compile_both()
+    rng = np.random.default_rng(0)
+    decoded = rng.standard_normal((2, 64, 64))
+    target = 0.5 * decoded + 0.25 * (np.roll(decoded, 1, 1) + np.roll(decoded, 1, 2))  # a filter pays
+    loopfilter.choose(decoded, target, 0.5, 0.1, lambda c: float(np.sum((c - target) ** 2)))
+    best_directions(rng.standard_normal((2, 256, 256)), 8, 0.5)  # enough work to run in parallel
+    best_directions(rng.standard_normal((2, 8, 8)), 4, 0.5)  # too little: in one thread
 
 
 def _make() -> None:

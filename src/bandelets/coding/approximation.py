@@ -133,9 +133,9 @@ def _approximation(
                 m - 2,
                 _RESTS + activity * _PREFIX,
                 decoding,
-                _RESTS_COARSE,
+                np.int64(_RESTS_COARSE),  # int64, not literals: rangecoder._positive's specialization
                 _FIRST_BELOW + activity * _PREFIX,
-                _FIRST_BELOW_COARSE,
+                np.int64(_FIRST_BELOW_COARSE),
             )
             if rest < 0 or rest > MAX_MAGNITUDE:
                 status = -1

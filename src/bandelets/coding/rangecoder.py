@@ -527,7 +527,10 @@ def _positive(st, buf, probs, counts, values, bases, decoding):
     r = registers(st)
     status = 0
     for i in range(values.shape[0]):
-        values[i], r = elias_gamma(r, buf, probs, counts, values[i], bases[i], decoding)
+        # Every argument given, as int64 (numba compiles a literal or an omitted argument as a type of its
+        # own): the coders share one specialization of elias_gamma, not three (4 s of compilation each).
+        none = np.int64(-1)
+        values[i], r = elias_gamma(r, buf, probs, counts, values[i], bases[i], decoding, none, none, none)
         if values[i] < 0:
             status = -1
             break
