@@ -34,6 +34,8 @@ def test_run_fractions_count_windows_of_equal_samples_along_each_axis():
     image[:, 3] = 1.0  # one column apart: a row of 16 has 16 - 8 + 1 windows, 5 of them clear of it
     assert hardsurface.run_fractions(image, run=8)[0] == pytest.approx(5 / 9)
     assert hardsurface.run_fractions(np.zeros((4, 4, 3)), run=8) == (0.0, 0.0)  # too small for a run
+    for unusable in (np.zeros((64, 64)), np.zeros((64, 64, 1)), np.zeros(5)):  # refused after, by the checks
+        assert hardsurface.run_fractions(unusable) == (0.0, 0.0)
 
 
 def test_the_guess_is_slats_not_plates_nor_texture():

@@ -41,14 +41,18 @@ ANISOTROPY = 0.15
 def run_fractions(array: np.ndarray, run: int = RUN) -> tuple[float, float]:
     """The fractions of the windows of ``run`` pixels along the rows, then the columns, of
     ``array`` (H, W, C), whose first two channels are equal in all ``run`` pixels (measured on
-    every :data:`STRIDE`-th row, then column)."""
-    values = np.asarray(array)[..., :2]
+    every :data:`STRIDE`-th row, then column). ``(0, 0)`` for an array of another shape: the checks
+    of the image that follow refuse what a normal map cannot be."""
+    values = np.asarray(array)
+    if values.ndim != 3 or values.shape[-1] < 2:
+        return 0.0, 0.0
+    values = values[..., :2]
     fractions = []
     for rows in (True, False):
         # every STRIDE-th line along the axis: the fractions of a map's texture, a quarter of the time
         lines = values[::STRIDE] if rows else values[:, ::STRIDE]
         step = lines[:, 1:] == lines[:, :-1] if rows else lines[1:] == lines[:-1]
-        equal = (step[..., 0] & step[..., 1]) if values.shape[-1] == 2 else step[..., 0]
+        equal = step[..., 0] & step[..., 1]
         equal = equal if rows else equal.T  # runs along the last axis
         if equal.shape[1] < run - 1 or equal.shape[0] == 0:
             fractions.append(0.0)
