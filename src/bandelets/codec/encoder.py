@@ -20,7 +20,7 @@ from ..format.limits import OWN_FILE, check_encodable
 from ..format.samples import to_samples
 from ..runtime.blas import one_blas_thread
 from ..search.lagrangian import LAMBDA
-from . import normalmaps, tile_encoder, variants
+from . import hardsurface, normalmaps, tile_encoder, variants
 from .at_threshold import Encoded
 from .decoder import decode
 from .options import AUTO_WAVELET, LOOP_FILTER_FROM, EncodeOptions
@@ -135,6 +135,7 @@ def encode_with_stats(
     tiled = tile_encoder.tiled(array, options)
     if unrestored is None and variants.applies(options, tiled):  # effort 9: the hard-surface choices too
         return variants.best_of_variants(array, options, encode_with_stats, measured=measured, **targets)
+    options = hardsurface.with_guess(np.asarray(array), options, tiled)  # below effort 9: the guess of it
     if tiled:
         return tile_encoder.encode_tiles(array, options, measured=measured, **targets)
     return encode_piece(array, options, measured=measured, unrestored=unrestored, **targets)

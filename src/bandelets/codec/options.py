@@ -161,8 +161,9 @@ class EncodeOptions:
         among them the one whose wavelet files promise most at the target; below, the estimates
         choose alone; below :data:`LOOP_FILTER_FROM` no loop filter is fitted; at 9 a normal map in
         one piece is also coded with Haar along the directions and the directions forced, and the
-        better file kept (:mod:`bandelets.codec.variants`, twice the time). The file's format is
-        the same at every effort.
+        better file kept (:mod:`bandelets.codec.variants`, twice the time), and below 9 that
+        variant alone where the map's runs of equal samples say so
+        (:mod:`bandelets.codec.hardsurface`). The file's format is the same at every effort.
     mesh_vertices : int
         The vertex count of the mesh a geometry image was sampled from, which
         :func:`bandelets.surfaces.codec.encode_mesh` records for its decoder (0: none).

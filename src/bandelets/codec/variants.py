@@ -9,7 +9,8 @@ normal maps"). Neither is a good guess on every map, and no estimate was found t
 apart in the time, so at :data:`VARIANTS_FROM` the encoder codes the map with each of
 :data:`VARIANTS` and keeps the better file, as ``wavelet="auto"`` does with the wavelets
 (:func:`bandelets.codec.encoder._best_of_wavelets`): the file format is the same, only the
-encoder's time grows (about ``len(VARIANTS)`` times).
+encoder's time grows (about ``len(VARIANTS)`` times). Below that effort the variant is coded alone
+where the map's runs of equal samples lie along one axis only (:mod:`bandelets.codec.hardsurface`).
 """
 
 from __future__ import annotations
