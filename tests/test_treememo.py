@@ -36,6 +36,17 @@ def test_near_threshold_reuses_far_one_searches():
     assert (memo.searched, memo.reused) == (2, 1)
 
 
+def test_reuses_the_nearest_search_not_only_the_first():
+    coefficients = _coefficients()
+    memo = TreeMemo()
+    memo.search(coefficients, 3, 0.02, "bandelet", "alpert2")
+    second_t = 0.02 * np.exp(-1.5 * REUSE_WITHIN)  # the first file missed by more than the window
+    second = memo.search(coefficients, 3, second_t, "bandelet", "alpert2")
+    # Beyond the window of the first search, within that of the second: the second's trees.
+    third = memo.search(coefficients, 3, second_t * np.exp(-0.5 * REUSE_WITHIN), "bandelet", "alpert2")
+    assert _same(third, second) and (memo.searched, memo.reused) == (2, 1)
+
+
 def test_before_hook_sees_every_subband_when_reused():
     coefficients = _coefficients()
     memo = TreeMemo()
