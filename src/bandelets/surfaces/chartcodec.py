@@ -71,6 +71,7 @@ __all__ = [
     "decode_charts",
     "describe",
     "encode_charts",
+    "faces_bytes",
     "fitting_side",
     "is_chart_file",
 ]
@@ -240,6 +241,16 @@ def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.nd
             "such as a Moebius strip); repair it first"
         )
     return stream, ordered, vertices[source.astype(np.int64)]
+
+
+def faces_bytes(mesh) -> int:
+    """Bytes of the Draco stream of a mesh's faces in its chart record (what the positions cannot have)."""
+    import trimesh
+
+    vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
+    oriented = trimesh.Trimesh(vertices, faces, process=False)
+    trimesh.repair.fix_winding(oriented)
+    return len(_connectivity(vertices, np.asarray(oriented.faces, np.int64))[0])
 
 
 def encode_charts(

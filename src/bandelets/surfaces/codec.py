@@ -342,15 +342,18 @@ def _parts_or(mesh, bits: float, charted: bytes, chosen: dict) -> bytes:
     each on the spherical path, the rest on the chart route) where the mesh has such components
     and that record measures better (Hausdorff PSNR, :data:`.chartcodec.TRIAL_SAMPLES`)."""
     from . import parts
-    from .chartcodec import TRIAL_SAMPLES, check_surface
+    from .chartcodec import TRIAL_SAMPLES, check_surface, faces_bytes
 
     vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     pieces = parts.split(vertices, faces)
     if pieces is None:
         return charted
-    try:
-        record = parts.encode_parts(pieces, bits, lambda part, n: encode_mesh(part, n_bytes=n, **chosen))
-    except ValueError:  # a part's share too small for its faces
+    try:  # the rest's faces, and the least its positions take beside them (chartcodec.encode_charts)
+        fixed = [0 if is_genus0(piece) else faces_bytes(piece) * 9 // 8 + 48 for piece in pieces]
+        record = parts.encode_parts(
+            pieces, bits, lambda part, n: encode_mesh(part, n_bytes=n, **chosen), fixed
+        )
+    except ValueError:  # a part's share too small for its faces, a rest of a single triangle
         return charted
     return parts.better(mesh, [charted, record], decode_mesh, TRIAL_SAMPLES)
 

@@ -131,7 +131,9 @@ def split(vertices: np.ndarray, faces: np.ndarray) -> list | None:
     return parts
 
 
-def encode_parts(parts: list, bits: float, encode: Callable[[object, int], bytes]) -> bytes:
+def encode_parts(
+    parts: list, bits: float, encode: Callable[[object, int], bytes], fixed: list[int] | None = None
+) -> bytes:
     """A record of ``parts`` (:func:`split`) in at most ``bits`` bits.
 
     Parameters
@@ -142,6 +144,10 @@ def encode_parts(parts: list, bits: float, encode: Callable[[object, int], bytes
     encode : callable
         ``encode(part, n_bytes)``: the mesh file of one part in at most ``n_bytes`` bytes
         (:func:`.codec.encode_mesh`).
+    fixed : list of int, optional
+        Bytes of each part's file that are not its positions (the faces of the rest, on the chart
+        route; none on the spherical path): each part gets them, and a share of the remaining
+        bytes in proportion to its vertex count.
 
     Raises
     ------
@@ -150,10 +156,11 @@ def encode_parts(parts: list, bits: float, encode: Callable[[object, int], bytes
     """
     counts = np.array([len(part.vertices) for part in parts], dtype=np.float64)
     overhead = len(MAGIC) + 1 + len(_leb128(len(parts))) + 3 * len(parts) + 4
-    budget = bits / 8.0 - overhead
+    fixed = [0] * len(parts) if fixed is None else fixed
+    budget = bits / 8.0 - overhead - sum(fixed)
     body = MAGIC + bytes([RECORD_VERSION]) + _leb128(len(parts))
-    for part, count in zip(parts, counts, strict=True):
-        data = encode(part, int(budget * count / counts.sum()))
+    for part, count, own in zip(parts, counts, fixed, strict=True):
+        data = encode(part, int(own + budget * count / counts.sum()))
         body += _leb128(len(data)) + data
     return body + zlib.crc32(body).to_bytes(4, "little")
 
