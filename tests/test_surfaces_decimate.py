@@ -14,6 +14,12 @@ from bandelets.surfaces.codec import make_geometry_image  # noqa: E402
 from bandelets.surfaces.metrics import hausdorff_psnr  # noqa: E402
 
 
+@pytest.fixture(autouse=True)
+def fast_on_small_grids(monkeypatch):
+    """fast-simplification on these small grids too (by default from 512 x 512 only)."""
+    monkeypatch.setattr(geometry_image, "FAST_FROM", 0)
+
+
 @pytest.fixture(scope="module")
 def bumpy():
     """A bumpy ellipsoid (642 vertices) and the glued mesh of its 64 x 64 geometry image."""
@@ -46,6 +52,21 @@ def test_fast_decimation_keeps_meshlabs_quality(bumpy):
     fast = hausdorff_psnr(mesh, geometry_image.decimate(grid, 642), samples=50_000)
     meshlab = hausdorff_psnr(mesh, geometry_image.decimate_meshlab(grid, 642), samples=50_000)
     assert fast > meshlab - 0.5
+
+
+def test_meshlab_decimates_small_grids(bumpy, monkeypatch):
+    mesh, grid = bumpy
+    monkeypatch.setattr(geometry_image, "FAST_FROM", len(grid.vertices) + 1)
+    import fast_simplification
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("fast-simplification on a small grid")
+
+    monkeypatch.setattr(fast_simplification, "simplify", refuse)
+    calls = []
+    meshlab = geometry_image.decimate_meshlab
+    monkeypatch.setattr(geometry_image, "decimate_meshlab", lambda *a: calls.append(a[1]) or meshlab(*a))
+    assert len(geometry_image.decimate(grid, 642).vertices) == 642 and calls == [642]
 
 
 def test_meshlab_takes_over_where_fast_simplification_stops_short(bumpy, monkeypatch):

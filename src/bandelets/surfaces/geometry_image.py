@@ -226,6 +226,11 @@ def coarsen(image: np.ndarray, vertices: int, most: int | None = None) -> np.nda
 #: 85.83 dB, MeshLab 85.82). Lower stops short; higher folds thin parts (the arm: 5 makes
 #: non-manifold edges).
 AGGRESSIVENESS = (1.0, 2.0, 3.0)
+#: Fewest vertices of a grid that fast-simplification decimates; MeshLab takes smaller ones, where
+#: it costs 2 s at most and measured up to 0.36 dB better (screwdriver.off at 8 bits per vertex,
+#: from 256 x 256; from 512 x 512 the two were within -0.04 to +0.16 dB on the nine shared closed
+#: meshes at 0.5 to 8 bits per vertex, BENCHMARKS.md).
+FAST_FROM = 512 * 512
 #: Largest share above the asked vertex count at which fast-simplification counts as arrived.
 SLACK = 0.02
 _FAST_LOCK = threading.Lock()  # fast-simplification keeps the mesh it works on in globals
@@ -235,7 +240,8 @@ def decimate(mesh, vertices: int):
     """A closed genus-0 mesh simplified to ``vertices`` vertices by quadric edge collapse.
 
     Garland and Heckbert's error quadrics to the ``2 vertices - 4`` faces a closed genus-0 mesh of
-    ``vertices`` vertices has, by fast-simplification (Fast-Quadric-Mesh-Simplification: greedy
+    ``vertices`` vertices has; from a grid of :data:`FAST_FROM` vertices up, by fast-simplification
+    (Fast-Quadric-Mesh-Simplification: greedy
     passes under an error threshold that grows, :data:`AGGRESSIVENESS`), on the mesh scaled to a
     unit diagonal (the threshold is absolute). It checks no topology, so its result is checked: if
     no pass count arrives (within :data:`SLACK`) at a closed genus-0 mesh, MeshLab's quadric edge
@@ -268,6 +274,8 @@ def decimate(mesh, vertices: int):
         raise ValueError(f"a closed mesh has at least 4 vertices, asked for {vertices}")
     if vertices >= len(mesh.vertices):
         return mesh
+    if len(mesh.vertices) < FAST_FROM:
+        return decimate_meshlab(mesh, vertices)
     points = np.asarray(mesh.vertices, np.float64)
     centre = points.mean(axis=0)
     scale = max(float(np.linalg.norm(np.ptp(points, axis=0))), 1e-300)
