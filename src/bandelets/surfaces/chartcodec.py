@@ -330,8 +330,15 @@ def encode_charts(
         others = {int(np.clip(round(side * factor / 2.0) * 2, 8, 4096)) for factor in SIDE_FACTORS} - {side}
         best = max([best, *(trials.attempt(best[1], other) for other in sorted(others))], key=_score)
     if layer:  # the best cut and side again, part of the bits to a normal layer (measured against none)
-        for share in normallayer.IMAGE_SHARES if tried else normallayer.IMAGE_SHARES[1:2]:
-            best = max([best, trials.layered(best[1] & ~LAYER, best[3], share)], key=_score)
+        # The image has part of the bits: so also at the smaller side that suits fewer bits.
+        cut, best_share = best[1] & ~LAYER, None
+        sides = [best[3], int(max(8, round(best[3] * SIDE_FACTORS[0] / 2.0) * 2))] if tried else [best[3]]
+        for side_tried in sides:
+            for share in normallayer.IMAGE_SHARES if tried else normallayer.IMAGE_SHARES[1:2]:
+                trial = trials.layered(cut, side_tried, share)
+                best, best_share = (trial, share) if trial[0] > best[0] else (best, best_share)
+        if tried and best_share is not None and not restore:  # and the image restored by the decoder
+            best = max([best, trials.layered(cut, best[3], best_share, restored=True)], key=_score)
     if tried and fallback:
         best = max(
             [
@@ -380,11 +387,15 @@ class _Trials:
         coded = encode_with_stats(image, self.options, bpp=self.bits / (side * side)).data
         return _trial_psnr(self._read(coded, layout), self.faces, self.positions), variant, coded, side
 
-    def layered(self, variant: int, side: int, share: float) -> tuple[float, int, bytes, int]:
-        """The image at ``share`` of the bits, a normal layer (:mod:`.normallayer`) in the rest;
-        the payload: image length, image, step, layer (``-inf`` if no layer fits)."""
+    def layered(
+        self, variant: int, side: int, share: float, restored: bool = False
+    ) -> tuple[float, int, bytes, int]:
+        """The image at ``share`` of the bits (``restored``: restored by the decoder, the iteration
+        count the encoder's), a normal layer (:mod:`.normallayer`) in the rest; the payload: image
+        length, image, step, layer (``-inf`` if no layer fits)."""
         side, layout, image = self.image(variant, side)
-        coded = encode_with_stats(image, self.options, bpp=share * self.bits / (side * side)).data
+        options = dataclasses.replace(self.options, restore=True) if restored else self.options
+        coded = encode_with_stats(image, options, bpp=share * self.bits / (side * side)).data
         read = self._read(coded, layout)
         normals, bend = normallayer.normal_curvature(read, self.faces)
         offsets = np.einsum("ij,ij->i", self.positions - read, normals)
