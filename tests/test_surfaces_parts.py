@@ -101,3 +101,23 @@ def test_a_damaged_record_of_parts_is_refused_in_one_line():
     nested = parts.encode_parts([both], 8 * (len(data) + 20), lambda part, n: data)
     with pytest.raises(ValueError, match="inside one"):
         decode_mesh(nested)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            lambda v, f: (np.where(np.arange(len(v))[:, None] == 200, np.nan, v), f),
+            "vertex 200 has a non-finite",
+        ),
+        (lambda v, f: (v, np.vstack([f, [[0, 0, 1]]])), "1 face repeats a vertex"),
+        (lambda v, f: (np.vstack([v, (v[0] + v[1]) / 2]), np.vstack([f, [[0, 1, len(v)]]])), "of zero area"),
+        (lambda v, f: (v, f[:0]), "no triangles"),
+    ],
+)
+def test_bad_meshes_of_two_parts_get_one_line(edit, message):
+    both = trimesh.util.concatenate([_bumpy(2, 0.0), _bumpy(2, 3.0)])
+    vertices, faces = edit(np.asarray(both.vertices), np.asarray(both.faces))
+    with pytest.raises(ValueError, match=message) as error:
+        encode_mesh(trimesh.Trimesh(vertices, faces, process=False), bits_per_vertex=8)
+    assert "\n" not in str(error.value)
