@@ -20,7 +20,10 @@ rocker-arm.obj (-9 dB), whose merged charts are long and thin. The encoder codes
 each of :data:`CHART_VARIANTS` (up to :data:`TRIED_UP_TO` vertices; above, the first only) and
 keeps the file of the best Hausdorff PSNR (:data:`TRIAL_SAMPLES` samples a side); one byte says
 which. It then tries the sides :data:`SIDE_FACTORS` times the default in the same way (the
-image's header holds its side).
+image's header holds its side), and last a normal layer (:mod:`.normallayer`) beside the image at
+part of the bits, at the best side and at the smaller one that suits the image's fewer bits, the
+best of those once more with the image restored by the decoder (the torus at Draco's
+quantization-7 size: +2.56 -> +3.39 dB over Draco).
 
 File layout (a mesh record of its own, not a plain .bdl image; little endian)::
 
