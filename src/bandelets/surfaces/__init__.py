@@ -18,6 +18,6 @@ One module per stage, each plain functions on numpy arrays and ``trimesh.Trimesh
 :mod:`.meshlab`           every pymeshlab call in one thread of its own (safe in any thread)
 ========================  ===============================================================
 
-This package imports trimesh, scipy, pymeshlab and fast-simplification; the rest of ``bandelets`` never imports
-it at start-up.
+This package imports trimesh, scipy, pymeshlab and fast-simplification; the rest of ``bandelets``
+never imports it at start-up.
 """
