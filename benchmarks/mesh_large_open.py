@@ -28,7 +28,7 @@ from bandelets.surfaces import metrics
 from bandelets.surfaces.codec import decode_mesh, encode_mesh, load_mesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mesh_topology import MESHES, topology  # noqa: E402
+from mesh_topology import MESHES  # noqa: E402
 
 
 def main() -> None:
@@ -50,7 +50,8 @@ def main() -> None:
     mesh.remove_unreferenced_vertices()
     print(
         f"{args.mesh} Loop x{args.subdivide}, cut at {args.cut:.0%} of its height: "
-        f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, components/loops {topology(mesh)}"
+        f"{len(mesh.vertices)} vertices, {len(mesh.faces)} faces, "
+        f"components/loops {metrics.topology(mesh)[1:]}"
     )
     start, cpu = time.perf_counter(), time.process_time()
     data = encode_mesh(mesh, bits_per_vertex=args.bpv)
@@ -69,7 +70,7 @@ def main() -> None:
     )
     print(
         f"Hausdorff PSNR {metrics.hausdorff_psnr(mesh, decoded):.2f} dB; "
-        f"components/loops decoded {topology(decoded)}"
+        f"components/loops decoded {metrics.topology(decoded)[1:]}"
     )
 
 

@@ -84,7 +84,7 @@ def main() -> None:
             decoded = codec.decode_mesh(data)
             ours = metrics.hausdorff_psnr(mesh, decoded)
             topo_out = metrics.topology(decoded)[1:]
-            route = "charts" if data[:4] == b"BDLC" else "sphere"
+            route = {b"BDLC": "charts", b"BDLP": "parts"}.get(data[:4], "sphere")
             print(
                 f"| {name} | {n_vertices} | {route} | {bits} | {8 * len(reference) / n_vertices:.2f} | "
                 f"{theirs:.2f} | {8 * len(data) / n_vertices:.2f} | {ours:.2f} | {ours - theirs:+.2f} | "

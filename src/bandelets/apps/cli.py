@@ -184,9 +184,9 @@ def _info(args) -> None:
     from ..metrics import bits_per_pixel
 
     data = _read_bdl(args.input)
-    from ..surfaces.chartcodec import MAGIC
+    from ..surfaces import chartcodec, parts
 
-    if data[:4] == MAGIC:  # a chart mesh record: no image header of its own
+    if data[:4] in (chartcodec.MAGIC, parts.MAGIC):  # a mesh record: no image header of its own
         from .meshsummary import representation
 
         with _about(args.input):

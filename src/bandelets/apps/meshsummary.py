@@ -8,15 +8,27 @@ __all__ = ["mesh_encode_summary", "representation"]
 def representation(data: bytes) -> dict:
     """Which representation a mesh file holds: ``"spherical geometry image"`` (a plain .bdl
     geometry image), ``"multi-chart geometry image"`` or ``"draco"`` (a chart mesh record, see
-    :func:`bandelets.surfaces.chartcodec.describe`)."""
-    from ..surfaces import chartcodec
+    :func:`bandelets.surfaces.chartcodec.describe`), or ``"parts"`` (a record of parts,
+    :mod:`bandelets.surfaces.parts`, with each part's representation)."""
+    from ..surfaces import chartcodec, parts
 
     if chartcodec.is_chart_file(data):
         return chartcodec.describe(data)
+    if parts.is_parts_file(data):  # the vertices and faces the decoded mesh has
+        inner = [representation(f) for f in parts.files(data)]
+        counts = {key: sum(part[key] for part in inner) for key in ("vertices", "faces")}
+        return {"representation": "parts", "bytes": len(data)} | counts | {"parts": inner}
     from ..format.container import header_of
 
     header = header_of(data)
-    return {"representation": "spherical geometry image", "side": header.width, "bytes": len(data)}
+    vertices = header.mesh_vertices or header.width**2  # the decoder's default count
+    return {
+        "representation": "spherical geometry image",
+        "side": header.width,
+        "bytes": len(data),
+        "vertices": vertices,
+        "faces": 2 * vertices - 4,
+    }
 
 
 def mesh_encode_summary(source: str, output: str, mesh, data: bytes, seconds: float) -> str:
@@ -31,6 +43,10 @@ def mesh_encode_summary(source: str, output: str, mesh, data: bytes, seconds: fl
     kind = about["representation"]
     if kind == "draco":
         how = "Draco's own stream (no geometry image was better at this size)"
+    elif kind == "parts":
+        how = f"{len(about['parts'])} parts: " + ", ".join(
+            f"{part['representation']} {part.get('side', '')}".strip() for part in about["parts"]
+        )
     else:
         how = f"{kind} {about['side']} x {about['side']}"
         if about.get("normal_layer_bytes"):

@@ -13,10 +13,11 @@ One module per stage, each plain functions on numpy arrays and ``trimesh.Trimesh
 :mod:`.charts`            any other topology: disk charts and their layout, from the faces alone
 :mod:`.atlas`             the smoothest image through the vertices of that layout; reading it
 :mod:`.chartcodec`        the multi-chart route: faces (Draco) + positions (geometry image)
+:mod:`.parts`             several parts: closed genus-0 ones on the spherical path, one file
 :mod:`.draco`             Google's Draco (DracoPy), the mesh anchor of ``bandelets rd``
 :mod:`.meshlab`           every pymeshlab call in one thread of its own (safe in any thread)
 ========================  ===============================================================
 
-This package imports trimesh, scipy and pymeshlab; the rest of ``bandelets`` never imports
-it at start-up.
+This package imports trimesh, scipy, pymeshlab and fast-simplification; the rest of ``bandelets``
+never imports it at start-up.
 """
