@@ -76,10 +76,10 @@ def lifted(
     Above :data:`bandelets.search.sampled.SAMPLED_ABOVE` pixels, decided on a sample
     (:func:`bandelets.search.sampled.lifted`: no trial)."""
     channels = padded_channels(coded, levels)
-    frames = len(channels) == 3  # a normal map's three channels are coded in local frames
     if sampled.applies(coded.shape[:2]):  # a large image: the choices made on a sample of it
-        return sampled.lifted(channels, plain, levels, lifting_levels, threshold, check, frames)
+        return sampled.lifted(channels, plain, levels, lifting_levels, threshold, check, len(channels) == 3)
     lifted, fields, lifting_levels, cost = directions.lift(channels, levels, lifting_levels, threshold)
+    frames = len(channels) == 3  # a normal map's three channels are coded in local frames
     if not check or directions.pays(
         channels, lifted, fields, levels, lifting_levels, threshold, frames, plain, cost
     ):
