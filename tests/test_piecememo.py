@@ -1,10 +1,9 @@
-"""A tile's later passes reuse the directions and geometry of its first (bandelets.codec.piecememo), and
-the sample of tiles that aims a tiled file's first pass (bandelets.codec.tile_encoder)."""
+"""A tile's later passes reuse the directions and geometry of its first (bandelets.codec.piecememo)."""
 
 from __future__ import annotations
 
 import bandelets
-from bandelets.codec import piece, tile_encoder
+from bandelets.codec import piece
 from bandelets.codec.options import EncodeOptions
 from bandelets.codec.piece import encode_piece
 from bandelets.codec.piecememo import PieceMemo
@@ -32,17 +31,7 @@ def test_a_later_encode_near_the_first_reuses_its_directions_and_trees(monkeypat
         assert bandelets.decode(data).shape == normals.shape
 
 
-def test_the_sample_of_tiles_takes_each_row_and_column_of_tiles():
-    sample = tile_encoder._sample_boxes(container.Grid(4096, 4096, 512))
-    assert len(sample) == 8
-    assert sorted(i // 8 for i in sample) == list(range(8)) and sorted(i % 8 for i in sample) == list(
-        range(8)
-    )
-    assert tile_encoder._sample_boxes(container.Grid(512, 4096, 512)) == [0]
-    assert len(tile_encoder._sample_boxes(container.Grid(2048, 2048, 512))) == 2
-
-
-def test_a_tiled_rate_target_with_the_sample_and_the_memos_is_met():
+def test_a_tiled_rate_target_with_the_memos_is_met():
     normals = crease_normal_map(256)
     data = bandelets.encode(normals, bpp=1.0, kind="normal-map", tile=32)
     target = normals.shape[0] * normals.shape[1] / 8

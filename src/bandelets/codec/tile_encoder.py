@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import metrics
-from ..format.container import TILE_WORK, WORKERS, Grid, cuts, pack
+from ..format.container import TILE_WORK, WORKERS, Grid, pack
 from ..format.fields import MAX_THRESHOLD, MIN_THRESHOLD, Kind, Layout
 from ..format.header import HEADER_BYTES
 from ..format.limits import check_encodable, tile_side
@@ -102,14 +102,8 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
             if target < HEADER_BYTES:
                 raise ValueError(f"target of {bpp:g} bpp ({target} bytes) cannot be reached")
             model = ratecontrol.size_model(magnitudes, count)
-            sample = _sample_boxes(grid)
-            probe = None
-            if len(sample) < len(grid.boxes):
-                line.stage("sample of the tiles", restart=True)
-                picked = [(grid.boxes[i], memos[i]) for i in sample]
-                probe = _sample_probe(source, picked, grid, options, model)
             best = ratecontrol.for_size(
-                lambda t: encode_at(t, False, False), target, t_max, model, t_min=MIN_THRESHOLD, probe=probe
+                lambda t: encode_at(t, False, False), target, t_max, model, t_min=MIN_THRESHOLD
             )
             if options.restore or measured:  # the same tiles, restored and measured
                 best = encode_at(best.threshold, options.restore, measured)
@@ -270,55 +264,6 @@ def _coefficient_sample(source: np.ndarray, grid: Grid, options) -> tuple[np.nda
     weight = options.normal_weight if options.frames else 1.0
     top = metrics.peak(np.concatenate(extremes), options.kind)
     return np.concatenate(samples), count, 2.0 * largest * max(1.0, weight), top
-
-
-#: Share of the tiles (at least one, regularly spread) whose files aim rate control's first pass
-#: (:func:`_sample_probe`).
-SAMPLE_SHARE = 0.125
-
-
-def _sample_boxes(grid: Grid) -> list[int]:
-    """The indices in ``grid.boxes`` of about :data:`SAMPLE_SHARE` of its tiles, along diagonals:
-    every row of tiles and every column sampled where there are enough of them."""
-    rows, cols = len(cuts(grid.height, grid.tile)), len(cuts(grid.width, grid.tile))
-    step = round(1 / SAMPLE_SHARE)
-    if rows == 1 or cols == 1:
-        return list(range(0, rows * cols, step))
-    per_row = max(1, cols // step)
-    every = max(1, round(step * per_row / cols))
-    return [r * cols + (r + j * step) % cols for r in range(0, rows, every) for j in range(per_row)]
-
-
-class _Boxes:
-    """Some of the tiles of a grid, where :func:`_coefficient_sample` takes a grid."""
-
-    def __init__(self, boxes: list) -> None:
-        self.boxes = boxes
-
-
-def _sample_probe(source: np.ndarray, sample: list, grid: Grid, options, model):
-    """``T -> bytes``: the size of the whole tiled file predicted from the tiles ``sample`` (boxes
-    and their memos) coded at
-    ``T`` (without restoration), for :func:`bandelets.search.ratecontrol.for_size`'s first pass: the
-    ratio of their files to the size model of their coefficients, times the model of all the tiles
-    (``model``). Without it the first pass at 4096 x 4096 (boombox upscaled, 1 bpp) was 11.6 %
-    above the target, a second and a third pass followed."""
-    magnitudes, count, _, _ = _coefficient_sample(source, _Boxes([box for box, _ in sample]), options)
-    own = ratecontrol.size_model(magnitudes, count)
-    del magnitudes
-
-    def probe(t: float) -> float:
-        t = max(t, MIN_THRESHOLD)
-        tiles = thread_map(
-            lambda item: _coded_tile(source, item[0], grid, options, t, False, False, None, item[1]),
-            sample,
-            WORKERS,
-        )
-        size = sum(len(tile.data) for tile in tiles)
-        x = float(np.log(t))
-        return size * float(np.exp(model(x) - own(x)))
-
-    return probe
 
 
 def side(array, options) -> int:
