@@ -1,6 +1,9 @@
-"""A tile's later passes reuse the directions and geometry of its first (bandelets.codec.piecememo)."""
+"""A tile's later passes reuse the directions and geometry of the last pass that chose them, where near
+it (bandelets.codec.piecememo)."""
 
 from __future__ import annotations
+
+import pytest
 
 import bandelets
 from bandelets.codec import piece
@@ -19,15 +22,18 @@ def test_a_later_encode_near_the_first_reuses_its_directions_and_trees(monkeypat
     options = EncodeOptions(kind="normal-map", progress=False)
     memo = PieceMemo()
     first = encode_piece(normals, options, threshold=0.01, memo=memo)
-    near = encode_piece(normals, options, threshold=0.0105, memo=memo)
-    far = encode_piece(normals, options, threshold=0.02, memo=memo)
-    assert calls == [0.01, 0.02]  # chosen at the first threshold and far from it, not near it
-    assert memo.lifting[0] == 0.01 and memo.trees.reused == 1 and memo.trees.searched == 2
-    # The directions of the first encode, at the nearby threshold: the same as choosing them again
-    # where the choice does not change, and every file decodes.
-    fresh = encode_piece(normals, options, threshold=0.0105)
+    near = encode_piece(normals, options, threshold=0.0103, memo=memo)
+    far = encode_piece(normals, options, threshold=0.0109, memo=memo)
+    nearer = encode_piece(normals, options, threshold=0.011, memo=memo)
+    # Chosen at the first threshold and 9 % from it, not 3 % from it nor 1 % from the last choice.
+    assert calls == [0.01, 0.0109]
+    assert memo.lifting[0] == 0.0109 and memo.trees.threshold == pytest.approx(0.0109, rel=1e-6)
+    assert memo.trees.reused == 1
+    # The choices of the first encode 3 % away: a file of about the size of choosing them again,
+    # and every file decodes.
+    fresh = encode_piece(normals, options, threshold=0.0103)
     assert abs(len(near.data) - len(fresh.data)) < 0.02 * len(fresh.data)
-    for data in (first.data, near.data, far.data):
+    for data in (first.data, near.data, far.data, nearer.data):
         assert bandelets.decode(data).shape == normals.shape
 
 

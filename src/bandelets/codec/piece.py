@@ -91,7 +91,7 @@ def encode_piece(
         if threshold is not None:
             piece.memo = memo
             candidate, _ = piece.choose(float(threshold))
-            search = best_trees if memo is None else memo.trees.search
+            search = best_trees if memo is None else memo.search
             return piece.finish(piece.encode_at(candidate, float(threshold), search=search))
         line.stage("rate control")
         if bpp is not None:
@@ -218,7 +218,7 @@ class _PieceEncoder:
                 self.coded, candidate.coefficients, candidate.levels, candidate.lifting_levels, t,
                 options.lifting is None,
             )  # fmt: skip
-            if self.memo is not None:
+            if self.memo is not None and not reused:
                 self.memo.keep(t, candidate.levels, lifting_levels, fields)
             candidate = Candidate(coefficients, candidate.levels, lifting_levels, fields)
             if trial is not None and tries:
