@@ -13,9 +13,9 @@ one's. Directions and trees are side information the file carries: any decode.
 Why so close: choices reused 7.6 % of ``T`` away (the second pass of the 4096 x 4096 boombox at 1
 bpp, ``bandelets.search.treememo.REUSE_WITHIN`` apart) made a file 3 % larger than choosing them
 again (2,135,169 bytes against 2,072,953), which sent rate control to a third and a fourth pass
-(four passes and 149 s of CPU against main's two and 120 s). Within 4 % (a third pass after a near
-miss, 1.2 to 2.7 % away in the runs measured) the files differ little and the pass costs 40 % of
-one that chooses.
+(the encode 168 s of CPU, 53.98 dB at 0.9848 bpp, against 134 s, 54.08 dB at 0.9885 bpp in two
+passes choosing anew). Within 4 % (a third pass after a near miss, 1.2 to 2.7 % away in the runs
+measured) a pass takes 30 to 40 % of the CPU time of one that chooses (BENCHMARKS.md, "Large maps").
 """
 
 from __future__ import annotations
