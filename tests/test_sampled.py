@@ -30,6 +30,8 @@ def test_mosaic_holds_a_share_of_the_crops_of_every_row_and_column():
         assert np.array_equal(m[top : top + 256, :256], x[top : top + 256, left : left + 256])
     [narrow] = sampled.mosaic([x[:, :512]], 6, 0.125)  # two columns of crops: every fourth row of crops
     assert narrow.shape == (512, 256)
+    strip = x[:128]  # shorter than a crop: not sampled
+    assert sampled.mosaic([strip], 6, 0.125)[0] is strip
 
 
 def _channels(normals: np.ndarray, levels: int) -> list[np.ndarray]:

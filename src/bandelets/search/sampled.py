@@ -37,9 +37,12 @@ def applies(shape: tuple[int, int]) -> bool:
 def mosaic(channels: list[np.ndarray], levels: int, share: float = SHARE) -> list[np.ndarray]:
     """A regular sample of the (padded) ``channels``: crops of :data:`CROP` (at least ``2**levels``)
     a side, about ``share`` of them, taken along diagonals (every row and every column of crops is
-    sampled) and laid side by side, row of crops by row of crops."""
+    sampled) and laid side by side, row of crops by row of crops; the channels themselves where a
+    side is shorter than a crop."""
     side = max(CROP, 1 << levels)
     rows, cols = channels[0].shape[0] // side, channels[0].shape[1] // side
+    if not rows or not cols:  # a strip narrower than a crop: the channels themselves
+        return list(channels)
     step = max(1, round(1 / share))
     per_row = max(1, cols // step)
     # A narrow image (fewer columns of crops than ``step``): not every row of crops either.
