@@ -18,7 +18,8 @@ the memory limit, in tiles of 512 above: :func:`bandelets.format.limits.tile_sid
 vectors, as the crease map is), whose files are Riesz pairs (:mod:`bandelets.transform.riesz`); with
 ``--no-riesz``, its channels.
 
-``--real``: then the shared real maps of ``--maps`` (:data:`REAL`, or those named), given as
+``--real``: then the shared real maps of ``--maps`` (:data:`REAL`, or those named; ``--upscale N``:
+upscaled bicubically to N pixels a side, as issue 36's 4096 x 4096 boombox), given as
 their 8-bit samples (as ``benchmarks/rd_normal_maps.py`` reads them; ``--floats``: as unit
 vectors made from them, as ``../shared/tools/quick-speed.py`` gives them); a map whose file is
 absent is skipped with a message. AVIF is timed at speed 6 and at speed 2 (the anchor of the
@@ -32,6 +33,7 @@ which the profiler inflates a little) with the count of rate-control loops and o
     python benchmarks/speed.py --map bevel --sizes 512 [--no-riesz]
     python benchmarks/speed.py --sizes 512 --real [--repeat 5] [--memory] [--stages] [--floats]
     python benchmarks/speed.py --sizes none --real godot_scifi_vent_decal_512 --stages
+    python benchmarks/speed.py --sizes none --real boombox_2048 --upscale 4096 --repeat 1 --memory
 """
 
 from __future__ import annotations
@@ -238,6 +240,15 @@ def _row(label: str, source, j2k: np.ndarray, avif: np.ndarray, depth: int, args
     return rated
 
 
+def _upscaled(samples: np.ndarray, side: int) -> np.ndarray:
+    """``samples`` (8-bit) upscaled bicubically (Pillow's) to ``side`` pixels a side (0: as they are)."""
+    if not side:
+        return samples
+    from PIL import Image
+
+    return np.asarray(Image.fromarray(samples).resize((side, side), Image.BICUBIC))
+
+
 def _real_maps(args) -> None:
     """Time the real maps of ``args.real`` (those absent skipped with a message)."""
     for name in args.real.split(","):
@@ -245,17 +256,18 @@ def _real_maps(args) -> None:
         if not path.is_file():
             print(f"{name:>26} skipped: {path} is absent (see --maps)")
             continue
-        samples = load(path)
+        samples = _upscaled(load(path), args.upscale)
         source = samples / 255.0 * 2 - 1 if args.floats else samples
         real = (
             f"sys.path.insert(0, {str(Path(__file__).resolve().parent)!r}); from rd_normal_maps import load; "
         )
-        real += f"from pathlib import Path; n = load(Path({str(path)!r}))"
+        real += "from pathlib import Path; from speed import _upscaled; "
+        real += f"n = _upscaled(load(Path({str(path)!r})), {args.upscale})"
         real += "; n = n / 255.0 * 2 - 1" if args.floats else ""
         peak = None
         if args.memory:
             peak = partial(_peak_memory_mib, samples.shape[0], tile=args.tile, riesz=args.riesz, real=real)
-        _row(name, source, samples, samples, 8, args, peak)
+        _row(name if not args.upscale else f"{name}@{args.upscale}", source, samples, samples, 8, args, peak)
 
 
 def main() -> None:
@@ -285,6 +297,9 @@ def main() -> None:
     )
     parser.add_argument("--maps", type=Path, default=Path("../shared/data/normal-maps"))
     parser.add_argument("--floats", action="store_true", help="real maps given as unit vectors, not samples")
+    parser.add_argument(
+        "--upscale", type=int, default=0, help="real maps upscaled bicubically to this side (4096: issue 36)"
+    )
     parser.add_argument("--stages", action="store_true", help="a profiled encode's stages per map")
     args = parser.parse_args()
     if not args.no_cold_start:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..format.fields import MAX_THRESHOLD, Kind
-from ..search import directions
+from ..search import directions, sampled
 from ..search.levelchoice import choose_levels
 from ..transform import riesz
 from ..transform.bandelets import padded_channels, wavelet_coefficients
@@ -72,8 +72,12 @@ def lifted(
     directions, chosen for ``threshold`` (:func:`bandelets.search.directions.lift`: slopes and pair
     codes), the levels lifted and None; or, with ``check``, where the directions do not pay
     (:func:`bandelets.search.directions.pays`), the plain coefficients ``plain``, None, 0 and, when
-    their cost ratio is below :data:`TRIAL_BELOW`, the lifted ones, directions and levels (to try)."""
+    their cost ratio is below :data:`TRIAL_BELOW`, the lifted ones, directions and levels (to try).
+    Above :data:`bandelets.search.sampled.SAMPLED_ABOVE` pixels, decided on a sample
+    (:func:`bandelets.search.sampled.lifted`: no trial)."""
     channels = padded_channels(coded, levels)
+    if sampled.applies(coded.shape[:2]):  # a large image: the choices made on a sample of it
+        return sampled.lifted(channels, plain, levels, lifting_levels, threshold, check, len(channels) == 3)
     lifted, fields, lifting_levels, cost = directions.lift(channels, levels, lifting_levels, threshold)
     frames = len(channels) == 3  # a normal map's three channels are coded in local frames
     if not check:

@@ -49,6 +49,7 @@ from .alternatives import (
 from .at_threshold import Encoded, encode_at_threshold
 from .decoder import decode_parsed, decoded_bins, decoded_from_bins
 from .options import FULL_TRIALS_FROM, TRIALS_FROM, EncodeOptions
+from .piecememo import PieceMemo
 from .plan import plan_image
 from .restoring import squared_error_of, with_loop_filter, with_restoration
 
@@ -70,13 +71,16 @@ def encode_piece(
     max_angle: float | None = None,
     measured: bool = False,
     unrestored: Encoded | None = None,
+    memo: PieceMemo | None = None,
 ) -> Encoded:
     """Encode ``array`` in one piece for exactly one target (checked by the caller,
     :func:`bandelets.codec.encoder.encode_with_stats`, whose options and returns these are).
 
     ``unrestored``: what this function returned for the same array and options but no restoration,
     at ``threshold``: the file is then only restored and measured, not coded again (a tiled
-    encode's last pass, :mod:`bandelets.codec.tile_encoder`).
+    encode's last pass, :mod:`bandelets.codec.tile_encoder`). ``memo``: with ``threshold``, the
+    directions and geometry of this piece's first encode at a nearby threshold, reused
+    (:class:`bandelets.codec.piecememo.PieceMemo`; a tile across the passes of rate control).
     """
     with Progress(options.progress) as line:
         piece = _PieceEncoder(
@@ -86,8 +90,10 @@ def encode_piece(
             piece.choose(None)
             return piece.finish(_read_back(unrestored))
         if threshold is not None:
+            piece.memo = memo
             candidate, _ = piece.choose(float(threshold))
-            return piece.finish(piece.encode_at(candidate, float(threshold)))
+            search = best_trees if memo is None else memo.search
+            return piece.finish(piece.encode_at(candidate, float(threshold), search=search))
         line.stage("rate control")
         if bpp is not None:
             return piece.for_size(bpp)
@@ -132,6 +138,8 @@ class _PieceEncoder:
         self.measures = _Measures()
         #: The threshold and wavelet file of the candidate :meth:`_cheapest` chose.
         self.probed: tuple[float, Encoded] | None = None
+        #: The choices of an encode of the same piece at a nearby threshold (:func:`encode_piece`).
+        self.memo: PieceMemo | None = None
         self.candidate = Candidate(
             wavelet_coefficients(self.coded, options.wavelet, plan.levels, options.extension),
             plan.levels,
@@ -203,10 +211,16 @@ class _PieceEncoder:
         tries = tries and plan.height * plan.width <= TRIAL_PIXELS and options.effort >= TRIALS_FROM
         trials: list[Candidate] = []
         if candidate.lifting_levels and t is not None:
-            coefficients, fields, lifting_levels, trial = lifted(
+            # A tile's later pass takes the directions of its first (bandelets.codec.piecememo).
+            reused = None if self.memo is None else self.memo.lifted(
+                self.coded, candidate.coefficients, candidate.levels, t
+            )  # fmt: skip
+            coefficients, fields, lifting_levels, trial = (*reused, None) if reused else lifted(
                 self.coded, candidate.coefficients, candidate.levels, candidate.lifting_levels, t,
                 options.lifting is None,
             )  # fmt: skip
+            if self.memo is not None and not reused:
+                self.memo.keep(t, candidate.levels, lifting_levels, fields)
             candidate = Candidate(coefficients, candidate.levels, lifting_levels, fields)
             if trial is not None and tries:
                 trials.append(Candidate(trial[0], candidate.levels, trial[2], trial[1]))

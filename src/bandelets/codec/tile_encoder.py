@@ -24,6 +24,7 @@ from ..transform.wavelets import max_levels
 from . import normalmaps
 from .at_threshold import Encoded
 from .piece import encode_piece
+from .piecememo import PieceMemo
 
 __all__ = ["encode_tiles", "side", "tiled"]
 
@@ -66,6 +67,8 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
         # The tiles of each pass without restoration (their bytes): the last pass restores and
         # measures those of its threshold rather than coding them again.
         passes: dict[float, list[_Tile]] = {}
+        # Each tile's directions and geometry of its first pass, for its later ones (piecememo).
+        memos = [PieceMemo() for _ in grid.boxes]
 
         def encode_at(t: float, restore: bool, keep: bool) -> Encoded:
             line.stage(f"pass {len(passes) + 1}, T={t:.3g}: tiles", restart=True)
@@ -73,12 +76,12 @@ def encode_tiles(array, options, *, bpp=None, threshold=None, psnr=None, max_ang
             earlier = passes.get(t) if restore or keep else None
 
             def one(item):
-                box, unrestored = item
-                return _coded_tile(source, box, grid, options, t, restore, keep, unrestored)
+                box, unrestored, memo = item
+                return _coded_tile(source, box, grid, options, t, restore, keep, unrestored, memo)
 
             tiles = []
             for tile in thread_map(
-                one, zip(grid.boxes, earlier or [None] * len(grid.boxes), strict=True), WORKERS
+                one, zip(grid.boxes, earlier or [None] * len(grid.boxes), memos, strict=True), WORKERS
             ):
                 tiles.append(tile)
                 line.step()
@@ -142,9 +145,11 @@ def _coded_tile(
     restore: bool,
     keep: bool,
     unrestored: _Tile | None,
+    memo: PieceMemo | None = None,
 ) -> _Tile:
     """The tile ``box`` of ``source`` coded at ``t`` as one piece (``unrestored``: its file without
-    restoration, only restored again), measured when ``keep``."""
+    restoration, only restored again; ``memo``: its choices at a nearby threshold), measured when
+    ``keep``."""
     kind = options.kind
     # No loop filter: its bytes would come after the search of the threshold of every tile.
     tile_options = replace(options, progress=False, tile=grid.tile, loop_filter=False)
@@ -161,6 +166,7 @@ def _coded_tile(
         threshold=t,
         measured=keep,
         unrestored=earlier,
+        memo=memo,
     )
     out = _Tile(encoded.data, encoded.coefficient_sse)
     if keep:
