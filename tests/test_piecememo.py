@@ -27,8 +27,9 @@ def test_a_later_encode_near_the_first_reuses_its_directions_and_trees(monkeypat
     nearer = encode_piece(normals, options, threshold=0.011, memo=memo)
     # Chosen at the first threshold and 9 % from it, not 3 % from it nor 1 % from the last choice.
     assert calls == [0.01, 0.0109]
-    assert memo.lifting[0] == 0.0109 and memo.trees.threshold == pytest.approx(0.0109, rel=1e-6)
-    assert memo.trees.reused == 1
+    assert memo.lifting[0] == 0.0109 and memo.trees.searches[-1][0] == pytest.approx(0.0109, rel=1e-6)
+    # The trees searched at the first and at 9 % from it; those reused 3 % and 1 % from them.
+    assert (memo.trees.searched, memo.trees.reused) == (2, 2)
     # The choices of the first encode 3 % away: a file of about the size of choosing them again,
     # and every file decodes.
     fresh = encode_piece(normals, options, threshold=0.0103)

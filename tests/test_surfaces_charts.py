@@ -9,6 +9,7 @@ trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("DracoPy")
 pytest.importorskip("pymeshlab")
 
+from bandelets.format.varint import varint  # noqa: E402
 from bandelets.surfaces import chartcodec, charts, codec, metrics  # noqa: E402
 
 
@@ -120,7 +121,7 @@ def test_draco_only_record_decodes_to_dracos_mesh():
     torus = trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12)
     stream = draco.encode(torus, 2000)
     body = chartcodec.MAGIC + bytes([chartcodec.RECORD_VERSION, chartcodec.DRACO_ONLY])
-    body += chartcodec._leb128(len(stream)) + stream
+    body += varint(len(stream)) + stream
     decoded = codec.decode_mesh(body + zlib.crc32(body).to_bytes(4, "little"))
     expected = draco.decode(stream)
     assert np.array_equal(decoded.faces, expected.faces)

@@ -63,9 +63,6 @@ class PieceMemo:
         self.lifting = (threshold, levels, lifted, fields)
 
     def search(self, coefficients: list, levels: int, threshold: float, *args) -> list:
-        """:meth:`bandelets.search.treememo.TreeMemo.search`, the trees of the last search reused
-        within :data:`REUSE_WITHIN` of its threshold (else searched again, and kept)."""
-        first = self.trees.threshold
-        if first is not None and abs(math.log(threshold / first)) >= REUSE_WITHIN:
-            self.trees = TreeMemo(REUSE_WITHIN)
+        """:meth:`bandelets.search.treememo.TreeMemo.search`: the trees of the nearest of its last
+        searches, within :data:`REUSE_WITHIN` of its threshold (else searched again, and kept)."""
         return self.trees.search(coefficients, levels, threshold, *args)

@@ -102,6 +102,7 @@ from .fields import (
 )
 from .filter import LoopFilter, most_filter_bytes, pack_filter, unpack_filter
 from .levels import group_count, interleave, segment_lengths, split, stored_lengths
+from .varint import varint
 
 __all__ = ["HEADER_BYTES", "Header", "implied_options", "pack", "streams_offset", "unpack"]
 
@@ -145,15 +146,10 @@ def _single(x: float) -> float:
 
 
 def _varint(value: int) -> bytes:
-    """The unsigned LEB128 bytes of ``0 <= value < 2**32``."""
+    """The unsigned LEB128 bytes of ``0 <= value < 2**32`` (:func:`bandelets.format.varint.varint`)."""
     if not 0 <= value < 2**32:
         raise ValueError(f"a header integer from 0 to 2**32 - 1, not {value}")
-    out = bytearray()
-    while True:
-        low, value = value & 127, value >> 7
-        out.append(low | (128 if value else 0))
-        if not value:
-            return bytes(out)
+    return varint(value)
 
 
 def _varints(data: bytes, start: int, count: int) -> tuple[list[int], int]:

@@ -30,6 +30,9 @@ __all__ = ["REUSE_WITHIN", "TreeMemo"]
 #: Largest ``|log(T / T_searched)|`` at which a loop's later encode reuses the trees of a search.
 REUSE_WITHIN = 0.15
 
+#: Searches a memo keeps (the latest): the first file of a loop and the one that corrected it.
+KEPT = 2
+
 
 class TreeMemo:
     """The trees of the bandelet encodes of one rate-control loop that searched, for its later ones.
@@ -45,7 +48,7 @@ class TreeMemo:
 
     def __init__(self, within: float = REUSE_WITHIN) -> None:
         self.within = within
-        #: ``(threshold, key, trees)`` of every search made, in order.
+        #: ``(threshold, key, trees)`` of the last :data:`KEPT` searches, in order.
         self.searches: list[tuple[float, tuple, list]] = []
         #: Searches made and reused (for benchmarks and tests).
         self.searched = 0
@@ -80,5 +83,6 @@ class TreeMemo:
         trees = best_trees(coefficients, levels, threshold, transform, transform_1d, before)
         if transform != "wavelet":
             self.searched += 1
-            self.searches.append((threshold, key, copy.deepcopy(trees)))
+            # The last KEPT searches (a tile's memo lives through every pass of a large image).
+            self.searches = [*self.searches, (threshold, key, copy.deepcopy(trees))][-KEPT:]
         return trees

@@ -56,12 +56,14 @@ import zlib
 
 import numpy as np
 
-# The codec's names through the spherical path's module, whose imports follow the package's layout.
 from ..codec.decoder import decode_parsed
 from ..codec.encoder import encode_with_stats
 from ..codec.options import EncodeOptions
 from ..format.fields import DEFAULT_NORMAL_WEIGHT, MAX_MEMORY
 from ..format.header import unpack
+
+# The codec's names through the spherical path's module, whose imports follow the package's layout.
+from ..format.varint import read_varint, varint
 from . import atlas, charts, checks, draco, normallayer, repair
 
 __all__ = [
@@ -172,27 +174,6 @@ def check_surface(vertices, faces) -> tuple[np.ndarray, np.ndarray, repair.Split
 
 def _faces(n: int) -> str:
     return f"{n} face" if n == 1 else f"{n} faces"
-
-
-def _leb128(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, value = value & 0x7F, value >> 7
-        out.append(byte | (0x80 if value else 0))
-        if not value:
-            return bytes(out)
-
-
-def _read_leb128(data: bytes, offset: int) -> tuple[int, int]:
-    value = shift = 0
-    for k in range(5):
-        if offset + k >= len(data):
-            break
-        value |= (data[offset + k] & 0x7F) << shift
-        if not data[offset + k] & 0x80:
-            return value, offset + k + 1
-        shift += 7
-    raise ValueError("not a chart mesh file (bad length field)")
 
 
 def _connectivity(vertices: np.ndarray, faces: np.ndarray) -> tuple[bytes, np.ndarray, np.ndarray]:
@@ -306,7 +287,7 @@ def encode_charts(
     if not (8 <= side <= 4096 and side % 2 == 0):
         raise ValueError(f"the geometry image size must be even, from 8 to 4096, got {side}")
     prefix = MAGIC + bytes([RECORD_VERSION])
-    head = _leb128(len(stream)) + stream
+    head = varint(len(stream)) + stream
     image_bits = bits - 8 * (len(prefix) + 1 + len(head) + 4)
     if image_bits < 8 * (len(head) // 8 + 32):
         raise ValueError(
@@ -352,7 +333,7 @@ def encode_charts(
         )
     _, variant, coded, _ = best
     if variant == DRACO_ONLY:
-        body = prefix + bytes([DRACO_ONLY]) + _leb128(len(coded)) + coded
+        body = prefix + bytes([DRACO_ONLY]) + varint(len(coded)) + coded
         return body + zlib.crc32(body).to_bytes(4, "little")
     body = prefix + bytes([variant]) + head + coded
     return body + zlib.crc32(body).to_bytes(4, "little")
@@ -403,7 +384,7 @@ class _Trials:
         normals, bend = normallayer.normal_curvature(read, self.faces)
         offsets = np.einsum("ij,ij->i", self.positions - read, normals)
         gain = float(np.float32(offsets @ bend / max(float(bend @ bend), 1e-300)))  # least squares
-        head = _leb128(len(coded)) + coded
+        head = varint(len(coded)) + coded
         scale = float(np.linalg.norm(np.ptp(self.positions, axis=0)))
         found = normallayer.encode(offsets - gain * bend, self.bits - 8 * (len(head) + 8), scale)
         if found is None:
@@ -494,7 +475,7 @@ def _parse(data: bytes) -> tuple[int, bytes, bytes]:
     layered = data[4] >= 2 and variant != DRACO_ONLY and variant & LAYER
     if variant != DRACO_ONLY and (variant & ~LAYER if layered else variant) >= len(CHART_VARIANTS):
         raise ValueError(f"corrupt chart mesh file (chart variant {variant})")
-    length, offset = _read_leb128(data, 6)
+    length, offset = read_varint(data, 6, what="not a chart mesh file")
     if offset + length > len(data) - 4:
         raise ValueError("truncated chart mesh file")
     return variant, data[offset : offset + length], data[offset + length : -4]
@@ -583,7 +564,7 @@ def _layer_parts(variant: int, image_data: bytes) -> tuple[bytes, tuple[float, f
     """The image, the step and gain and the normal layer of a record's payload (no layer: ``None``)."""
     if not variant & LAYER:
         return image_data, (0.0, 0.0), None
-    length, offset = _read_leb128(image_data, 0)
+    length, offset = read_varint(image_data, 0, what="not a chart mesh file")
     if offset + length + 8 > len(image_data):
         raise ValueError("truncated chart mesh file")
     step, gain = struct.unpack("<ff", image_data[offset + length : offset + length + 8])

@@ -32,6 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..format.varint import read_varint, varint
 from . import checks
 
 __all__ = [
@@ -59,27 +60,6 @@ FEWEST_VERTICES = 64
 def is_parts_file(data: bytes) -> bool:
     """Whether ``data`` starts as a record of parts."""
     return bytes(data[:4]) == MAGIC
-
-
-def _leb128(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, value = value & 0x7F, value >> 7
-        out.append(byte | (0x80 if value else 0))
-        if not value:
-            return bytes(out)
-
-
-def _read_leb128(data: bytes, offset: int) -> tuple[int, int]:
-    value = shift = 0
-    for k in range(5):
-        if offset + k >= len(data) - 4:
-            break
-        value |= (data[offset + k] & 0x7F) << shift
-        if not data[offset + k] & 0x80:
-            return value, offset + k + 1
-        shift += 7
-    raise ValueError("corrupt parts mesh file (bad length field)")
 
 
 def _is_genus0(vertices: np.ndarray, faces: np.ndarray) -> bool:
@@ -155,13 +135,13 @@ def encode_parts(
         A part's file does not fit its share of the bits.
     """
     counts = np.array([len(part.vertices) for part in parts], dtype=np.float64)
-    overhead = len(MAGIC) + 1 + len(_leb128(len(parts))) + 3 * len(parts) + 4
+    overhead = len(MAGIC) + 1 + len(varint(len(parts))) + 3 * len(parts) + 4
     fixed = [0] * len(parts) if fixed is None else fixed
     budget = bits / 8.0 - overhead - sum(fixed)
-    body = MAGIC + bytes([RECORD_VERSION]) + _leb128(len(parts))
+    body = MAGIC + bytes([RECORD_VERSION]) + varint(len(parts))
     for part, count, own in zip(parts, counts, fixed, strict=True):
         data = encode(part, int(own + budget * count / counts.sum()))
-        body += _leb128(len(data)) + data
+        body += varint(len(data)) + data
     return body + zlib.crc32(body).to_bytes(4, "little")
 
 
@@ -180,10 +160,10 @@ def files(data: bytes) -> list[bytes]:
         raise ValueError("corrupt parts mesh file (CRC mismatch)")
     if data[4] != RECORD_VERSION:
         raise ValueError(f"parts mesh record version {data[4]}; this build reads version {RECORD_VERSION}")
-    count, offset = _read_leb128(data, 5)
+    count, offset = read_varint(data, 5, len(data) - 4, "corrupt parts mesh file")
     out = []
     for _ in range(count):
-        length, offset = _read_leb128(data, offset)
+        length, offset = read_varint(data, offset, len(data) - 4, "corrupt parts mesh file")
         if offset + length > len(data) - 4:
             raise ValueError("truncated parts mesh file")
         out.append(data[offset : offset + length])
