@@ -92,7 +92,7 @@ def encode_piece(
         if threshold is not None:
             piece.memo = memo
             candidate, _ = piece.choose(float(threshold))
-            search = best_trees if memo is None else memo.search
+            search = best_trees if memo is None else memo.trees.search
             return piece.finish(piece.encode_at(candidate, float(threshold), search=search))
         line.stage("rate control")
         if bpp is not None:
@@ -267,7 +267,7 @@ class _PieceEncoder:
             return y0 if x0 == x1 else y0 + (y1 - y0) * (math.log(target) - x0) / (x1 - x0)
 
         choices = [candidate, *trials]
-        self.measure(None)  # the reference copied once, before the threads share it
+        self._measurer()  # the reference copied once, before the threads share it
         # The alternatives in threads (the coder's and the transforms' kernels let go of the GIL):
         # on two cores, the weighing's wall time nearly halves.
         promises = list(thread_map(promised, choices, min(CORES, len(choices))))
@@ -366,14 +366,16 @@ class _PieceEncoder:
         header = replace(encoded.header, restoration=0, loop_filter=None)
         return decoded_from_bins(header, encoded.trees, encoded.bins, encoded.lifting)
 
-    def measure(self, decoded: np.ndarray | None) -> float:
-        """PSNR of a decoded image as written at the source's depth (its reference copied once;
-        None: only that copy made, NaN returned)."""
+    def _measurer(self):
+        """The PSNR against the source (:func:`bandelets.metrics.psnr_against`: its reference copied
+        once, when first needed)."""
         if self._psnr is None:
             self._psnr = metrics.psnr_against(self.reference, self.options.kind)
-        if decoded is None:
-            return math.nan
-        return self._psnr(as_read(decoded, self.options.kind, self.plan.depth))
+        return self._psnr
+
+    def measure(self, decoded: np.ndarray) -> float:
+        """PSNR of a decoded image as written at the source's depth."""
+        return self._measurer()(as_read(decoded, self.options.kind, self.plan.depth))
 
     def for_size(self, bpp: float) -> Encoded:
         """The best file of at most ``bpp`` bits per pixel: rate control on the candidate chosen

@@ -39,7 +39,8 @@ REUSE_WITHIN = 0.04
 class PieceMemo:
     """The choices of one piece's last encode that made them, for its encodes at nearby thresholds."""
 
-    #: The bandelet geometry of the last bandelet encode that searched it (:meth:`search`).
+    #: The bandelet geometry of its last searches (:meth:`bandelets.search.treememo.TreeMemo.search`,
+    #: the search :func:`bandelets.codec.piece.encode_piece` gives the encode).
     trees: TreeMemo = field(default_factory=lambda: TreeMemo(REUSE_WITHIN))
     #: The threshold, the count of wavelet levels and the levels lifted the directions were chosen
     #: for, and the directions (None: not lifted, the directions did not pay).
@@ -61,8 +62,3 @@ class PieceMemo:
     def keep(self, threshold: float, levels: int, lifted: int, fields: list | None) -> None:
         """Keep the directions chosen at ``threshold`` (in place of those kept before)."""
         self.lifting = (threshold, levels, lifted, fields)
-
-    def search(self, coefficients: list, levels: int, threshold: float, *args) -> list:
-        """:meth:`bandelets.search.treememo.TreeMemo.search`: the trees of the nearest of its last
-        searches, within :data:`REUSE_WITHIN` of its threshold (else searched again, and kept)."""
-        return self.trees.search(coefficients, levels, threshold, *args)
