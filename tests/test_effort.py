@@ -1,6 +1,7 @@
 """The encoder's effort (issue 36): the same format at every effort; from FULL_TRIALS_FROM a rate-control
 loop per alternative tried, from TRIALS_FROM one loop on the alternative of least cost at one threshold,
-below it one loop on what the estimates choose; below LOOP_FILTER_FROM no loop filter."""
+below it one loop on what the estimates choose; below GEOMETRY_FROM no bandelet geometry but on the maps the
+hard-surface guess claims; below LOOP_FILTER_FROM no loop filter either."""
 
 from __future__ import annotations
 
@@ -12,8 +13,10 @@ import pytest
 import bandelets
 from bandelets.apps.cli import main
 from bandelets.codec import hardsurface, piece
-from bandelets.codec.options import FULL_TRIALS_FROM, LOOP_FILTER_FROM, TRIALS_FROM
+from bandelets.codec.options import FULL_TRIALS_FROM, GEOMETRY_FROM, LOOP_FILTER_FROM, TRIALS_FROM
 from bandelets.format.header import unpack
+from bandelets.samples import bevel_normal_map
+from bandelets.search import treememo
 
 REAL = (
     Path(__file__).resolve().parents[2] / "shared" / "data" / "normal-maps" / "godot_scifi_vent_decal_512.png"
@@ -64,6 +67,24 @@ def test_below_loop_filter_from_no_filter_is_written(vent):
     without = unpack(bandelets.encode(vent, bpp=1.0, kind="normal-map", effort=LOOP_FILTER_FROM - 1))[0]
     assert with_filter.loop_filter is not None
     assert without.loop_filter is None
+
+
+@pytest.mark.parametrize("claimed", [False, True])
+def test_below_geometry_from_only_hard_surface_maps_search_the_geometry(monkeypatch, claimed):
+    monkeypatch.setattr(hardsurface, "wants_haar_along_directions", lambda array: claimed)
+    searches = []
+    search = treememo.best_trees  # the rate-control loop's searches of the geometry
+    monkeypatch.setattr(treememo, "best_trees", lambda *args: searches.append(args[3]) or search(*args))
+    x = bevel_normal_map(128)
+    fast = unpack(bandelets.encode(x, bpp=1.0, kind="normal-map", effort=GEOMETRY_FROM - 1))[0]
+    assert fast.transform == ("bandelet" if claimed else "wavelet")
+    assert ("bandelet" in searches) == claimed
+    searches.clear()
+    assert (
+        unpack(bandelets.encode(x, bpp=1.0, kind="normal-map", effort=GEOMETRY_FROM))[0].transform
+        == "bandelet"
+    )
+    assert "bandelet" in searches
 
 
 @pytest.mark.parametrize("effort", [0, 10, 7.5, "7"])

@@ -23,7 +23,7 @@ from ..search.lagrangian import LAMBDA
 from . import hardsurface, normalmaps, tile_encoder, variants
 from .at_threshold import Encoded
 from .decoder import decode
-from .options import AUTO_WAVELET, LOOP_FILTER_FROM, EncodeOptions
+from .options import AUTO_WAVELET, GEOMETRY_FROM, LOOP_FILTER_FROM, EncodeOptions
 from .piece import encode_piece
 
 __all__ = ["AUTO_CANDIDATES", "Encoded", "encode", "encode_with_stats"]
@@ -135,7 +135,10 @@ def encode_with_stats(
     tiled = tile_encoder.tiled(array, options)
     if unrestored is None and variants.applies(options, tiled):  # effort 9: the hard-surface choices too
         return variants.best_of_variants(array, options, encode_with_stats, measured=measured, **targets)
-    options = hardsurface.with_guess(np.asarray(array), options, tiled)  # below effort 9: the guess of it
+    guessed = hardsurface.with_guess(np.asarray(array), options, tiled)  # below effort 9: the guess of it
+    if guessed is options and options.effort < GEOMETRY_FROM and options.transform == "bandelet":
+        guessed = replace(options, transform="wavelet")  # the fast efforts: no geometry search
+    options = guessed
     if tiled:
         return tile_encoder.encode_tiles(array, options, measured=measured, **targets)
     return encode_piece(array, options, measured=measured, unrestored=unrestored, **targets)

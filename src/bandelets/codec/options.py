@@ -35,6 +35,7 @@ __all__ = [
     "AUTO_WAVELET",
     "DEFAULT_EFFORT",
     "FULL_TRIALS_FROM",
+    "GEOMETRY_FROM",
     "LOOP_FILTER_FROM",
     "TRIALS_FROM",
     "EncodeOptions",
@@ -58,8 +59,17 @@ TRIALS_FROM = 7
 #: restored and measured, and the better file is kept (three loops instead of one on the real maps
 #: whose Riesz pair is close to paying: the slowest, and what the default was before issue 36).
 FULL_TRIALS_FROM = 8
-#: Effort from which the encoder fits a loop filter (:mod:`bandelets.search.filterfit`).
-LOOP_FILTER_FROM = 5
+#: Effort from which the encoder fits a loop filter (:mod:`bandelets.search.filterfit`): the last
+#: search the fast efforts drop, for it buys the most per second (0.1 to 0.3 s at 512 x 512 for up to
+#: 1.2 dB at 0.25 bpp on the vent decal).
+LOOP_FILTER_FROM = 3
+#: Effort from which the encoder searches the bandelet geometry of every image (paper steps (3) to
+#: (10)). Below it (the fast efforts) an image is coded with the wavelets alone, lifted along
+#: directions where they pay (the geometry search and the encodes of its rate-control loop are about
+#: half of a 512 x 512 encode), except a normal map the hard-surface guess claims
+#: (:mod:`bandelets.codec.hardsurface`): there the bandelets are 4 dB better than the lifted wavelets
+#: at 1 bpp on the vent decal, so it keeps them. BENCHMARKS, "The fast efforts".
+GEOMETRY_FROM = 5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -159,9 +169,10 @@ class EncodeOptions:
         :data:`FULL_TRIALS_FROM` a rate target encodes each alternative close to paying through a
         rate-control loop of its own and keeps the better file; from :data:`TRIALS_FROM` it picks
         among them the one whose wavelet files promise most at the target; below, the estimates
-        choose alone; below :data:`LOOP_FILTER_FROM` no loop filter is fitted; at 9 a normal map in
-        one piece is also coded with Haar along the directions and the directions forced, and the
-        better file kept (:mod:`bandelets.codec.variants`, twice the time), and below 9 that
+        choose alone; below :data:`GEOMETRY_FROM` no bandelet geometry is searched but on
+        hard-surface maps; below :data:`LOOP_FILTER_FROM` no loop filter is fitted either; at 9 a
+        normal map in one piece is also coded with Haar along the directions and the directions
+        forced, and the better file kept (:mod:`bandelets.codec.variants`, twice the time), and below 9 that
         variant alone where the map's runs of equal samples say so
         (:mod:`bandelets.codec.hardsurface`). The file's format is the same at every effort.
     mesh_vertices : int
