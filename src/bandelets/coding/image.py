@@ -6,6 +6,8 @@ encoder and the decoder, so the two cannot disagree on it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..format.fields import padded_shape
@@ -55,6 +57,9 @@ def code_image(
     *,
     lifting: list | None = None,
     upto: int = 0,
+    reached: Callable[[int], None] | None = None,
+    plans: dict | None = None,
+    spent: list[np.ndarray] | None = None,
 ) -> tuple[list, list, list]:
     """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
 
@@ -74,6 +79,12 @@ def code_image(
     coarser than ``upto`` only (1 = finest; 0: all), the bins of the others left at zero; the
     trees returned are then those of the levels decoded.
 
+    ``reached``: called with ``index`` before detail subband ``index`` is coded, and with the count
+    of subbands after the last (an encoder's two passes in step, :mod:`bandelets.codec.pipeline`).
+    ``plans``: the coding orders of the subbands by index (:func:`bandelets.coding.order.subband_plan`),
+    read where present and added where not (two passes over the same trees share them).
+    ``spent``: where the code lengths are written (zeros, shape (H * W,) per channel; made if None).
+
     ``estimate``: the approximation is coded with version 17's model
     (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's
     (:mod:`bandelets.coding.approximation`),
@@ -92,7 +103,7 @@ def code_image(
     if decoding:
         quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
     known = [np.zeros(size, np.int64) for _ in quantized]
-    spent = [np.zeros(size) for _ in quantized]
+    spent = [np.zeros(size) for _ in quantized] if spent is None else spent
     coarse = approximation_plan(shape, header.levels)
     guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
@@ -101,10 +112,13 @@ def code_image(
     segments = [[] for _ in coders]
     _cut(coders, segments)
     out = []
-    for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
+    slices = subband_slices(shape, header.levels)
+    for index, (_, orientation, where) in enumerate(slices):
         level = header.levels - index // 3
         if level <= upto:
             break
+        if reached is not None:
+            reached(index)
         band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
         if header.transform == "bandelet":
             tree = code_tree(
@@ -118,7 +132,12 @@ def code_image(
         else:
             tree = flat_quadtree(band, root_width(band))
         out.append(tree)
-        squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        plan = None if plans is None else plans.get(index)
+        if plan is None:
+            plan = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+            if plans is not None:
+                plans[index] = plan
+        squares, rest = plan
         for c, q in enumerate(quantized):
             if squares.order.size:
                 hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
@@ -132,6 +151,8 @@ def code_image(
                 if decoding and lifting is not None:
                     lifting.extend(fields)
             _cut(coders, segments)
+    if reached is not None:
+        reached(len(slices))
     if not decoding:
         for coder, parts in zip(coders, segments, strict=True):
             coder.segments = parts

@@ -1,0 +1,78 @@
+"""The encoder's two coding passes in step on two cores (bandelets.codec.pipeline): the same files."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+import bandelets
+from bandelets.codec import at_threshold, pipeline
+from bandelets.format.fields import Kind
+from bandelets.format.header import Header
+from bandelets.runtime import threads
+from bandelets.samples import bevel_normal_map, crease_normal_map
+
+
+def _encodes(monkeypatch, stepped: bool, image, **target) -> tuple[bytes, int]:
+    """The file of ``image`` with the two passes in step (``stepped``) or one after the other, and how
+    many files were coded in step."""
+    calls = []
+
+    def counted(*args):
+        calls.append(1)
+        return pipeline.code_in_step(*args)
+
+    monkeypatch.setattr(at_threshold, "in_step", lambda header: stepped and pipeline.in_step(header))
+    monkeypatch.setattr(at_threshold, "code_in_step", counted)
+    return bandelets.encode(image, kind="normal-map", **target), len(calls)
+
+
+@pytest.mark.skipif(threads.CORES < 2, reason="one core: the passes run one after the other")
+@pytest.mark.parametrize(
+    ("image", "target"),
+    [
+        (crease_normal_map(256), {"threshold": 0.02}),
+        (bevel_normal_map(256), {"bpp": 1.0}),
+    ],
+)
+def test_in_step_codes_the_same_bytes(monkeypatch, image, target):
+    serial, none = _encodes(monkeypatch, False, image, **target)
+    stepped, used = _encodes(monkeypatch, True, image, **target)
+    assert none == 0 and used >= 1
+    assert stepped == serial
+
+
+def test_not_in_step_below_its_size_nor_inside_a_map():
+    def header(side: int) -> Header:
+        return Header(
+            height=side,
+            width=side,
+            channels=2,
+            kind=Kind.NORMAL_MAP,
+            transform="bandelet",
+            wavelet="cdf97",
+            levels=4,
+            threshold=0.1,
+        )
+
+    large = header(512)
+    assert not pipeline.in_step(header(128))
+    assert not pipeline.in_step(replace(large, frames=True))
+    assert pipeline.in_step(large) == (threads.CORES > 1)
+    assert list(threads.thread_map(lambda _: pipeline.in_step(large), range(2))) == [False, False]
+
+
+def test_an_error_of_the_first_pass_reaches_the_caller(monkeypatch):
+    if threads.CORES < 2:
+        pytest.skip("one core: no first pass in a thread")
+
+    def failing(coders, header, trees, quantized, **kwargs):
+        if "spent" in kwargs:  # the first pass
+            raise RuntimeError("first pass failed")
+        return original(coders, header, trees, quantized, **kwargs)
+
+    original = pipeline.code_image
+    monkeypatch.setattr(pipeline, "code_image", failing)
+    with pytest.raises(RuntimeError, match="first pass failed"):
+        bandelets.encode(crease_normal_map(256), kind="normal-map", threshold=0.02)
