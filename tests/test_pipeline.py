@@ -1,9 +1,11 @@
-"""The encoder's two coding passes in step on two cores (bandelets.codec.pipeline): the same files."""
+"""The encoder's two coding passes in step on two cores (bandelets.codec.pipeline): the same files; the
+rows of elementwise functions in two threads (bandelets.runtime.threads.by_rows): the same numbers."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 import bandelets
@@ -12,6 +14,7 @@ from bandelets.format.fields import Kind
 from bandelets.format.header import Header
 from bandelets.runtime import threads
 from bandelets.samples import bevel_normal_map, crease_normal_map
+from bandelets.transform import normals
 
 
 def _encodes(monkeypatch, stepped: bool, image, **target) -> tuple[bytes, int]:
@@ -76,3 +79,14 @@ def test_an_error_of_the_first_pass_reaches_the_caller(monkeypatch):
     monkeypatch.setattr(pipeline, "code_image", failing)
     with pytest.raises(RuntimeError, match="first pass failed"):
         bandelets.encode(crease_normal_map(256), kind="normal-map", threshold=0.02)
+
+
+def test_by_rows_makes_the_same_numbers_as_one_call():
+    rng = np.random.default_rng(3)
+    vectors = rng.normal(size=(1024, 512, 3))
+    assert vectors.size >= threads.BY_ROWS_FROM
+    whole = normals.unit_vectors(vectors)
+    assert np.array_equal(threads.by_rows(normals.unit_vectors, vectors), whole)
+    assert np.array_equal(threads.by_rows(normals.equidistant, whole), normals.equidistant(whole))
+    small = vectors[:8]
+    assert np.array_equal(threads.by_rows(normals.unit_vectors, small), normals.unit_vectors(small))

@@ -11,7 +11,9 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["CORES", "each", "one_of_many", "thread_map", "workers"]
+import numpy as np
+
+__all__ = ["BY_ROWS_FROM", "CORES", "by_rows", "each", "one_of_many", "thread_map", "workers"]
 
 #: Cores this process may run on (its CPU affinity): the kernels that split their rows in threads ask.
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
@@ -78,3 +80,24 @@ def one_of_many() -> bool:
     """Whether the calling thread already shares the cores with others of the library's: one of the
     :func:`workers` (which must not wait on its own pool) or an item of a :func:`thread_map`."""
     return threading.current_thread().name.startswith("bandelets") or getattr(_MAPPED, "item", False)
+
+
+#: Values from which :func:`by_rows` splits the rows in two threads (below, the hand-over costs more).
+BY_ROWS_FROM = 2**20
+
+
+def by_rows(function, array: np.ndarray) -> np.ndarray:
+    """``function(array)`` for a ``function`` that makes each row of its result from the same row of
+    ``array`` alone (numpy's elementwise functions, which let go of the GIL on large arrays): from
+    :data:`BY_ROWS_FROM` values on, the second half of the rows in a worker thread, the same numbers."""
+    rows = array.shape[0]
+    if array.size < BY_ROWS_FROM or rows < 2 or CORES < 2 or one_of_many():
+        return function(array)
+    half = rows // 2
+    second = workers().submit(function, array[half:])
+    first = function(array[:half])
+    out = np.empty((rows, *first.shape[1:]), first.dtype)
+    out[:half] = first
+    del first
+    out[half:] = second.result()
+    return out
