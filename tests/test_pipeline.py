@@ -3,6 +3,7 @@ rows of elementwise functions in two threads (bandelets.runtime.threads.by_rows)
 
 from __future__ import annotations
 
+import threading
 from dataclasses import replace
 
 import numpy as np
@@ -10,8 +11,10 @@ import pytest
 
 import bandelets
 from bandelets.codec import at_threshold, pipeline
+from bandelets.codec.levels import decode_level
+from bandelets.coding import image
 from bandelets.format.fields import Kind
-from bandelets.format.header import Header
+from bandelets.format.header import Header, unpack
 from bandelets.runtime import threads
 from bandelets.samples import bevel_normal_map, crease_normal_map
 from bandelets.transform import normals
@@ -90,3 +93,26 @@ def test_by_rows_makes_the_same_numbers_as_one_call():
     assert np.array_equal(threads.by_rows(normals.equidistant, whole), normals.equidistant(whole))
     small = vectors[:8]
     assert np.array_equal(threads.by_rows(normals.unit_vectors, small), normals.unit_vectors(small))
+
+
+@pytest.mark.parametrize(
+    ("image_of", "lifting", "level"),
+    [(bevel_normal_map, None, 0), (bevel_normal_map, None, 2), (crease_normal_map, True, 0)],
+)
+def test_quadtrees_decoded_ahead_give_the_same_image(monkeypatch, image_of, lifting, level):
+    data = bandelets.encode(image_of(256), kind="normal-map", bpp=1.0, lifting=lifting)
+    assert (unpack(data)[0].lifting > 0) == bool(lifting)
+    monkeypatch.setattr(image, "AHEAD_FROM", 1 << 60)
+    alone = decode_level(data, level) if level else bandelets.decode(data)
+    monkeypatch.setattr(image, "AHEAD_FROM", 256 * 256)
+    names = []
+
+    def geometry(*args):
+        names.append(threading.current_thread().name)
+        return original(*args)
+
+    original = image._geometry
+    monkeypatch.setattr(image, "_geometry", geometry)
+    ahead = decode_level(data, level) if level else bandelets.decode(data)
+    assert np.array_equal(ahead, alone)
+    assert any(n.startswith("bandelets") for n in names) == (threads.CORES > 1)

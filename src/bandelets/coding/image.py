@@ -7,11 +7,13 @@ encoder and the decoder, so the two cannot disagree on it.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 
 from ..format.fields import padded_shape
 from ..format.header import Header
+from ..runtime.threads import CORES, one_of_many, workers
 from ..transform.bandeletize import debandeletize_bins
 from ..transform.quadtree import flat_quadtree, root_width
 from ..transform.wavelets import subband_slices
@@ -20,7 +22,10 @@ from .order import approximation_plan, subband_plan
 from .squarecontexts import square_hints
 from .trees import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
 
-__all__ = ["code_image", "code_lifting", "new_coders"]
+__all__ = ["AHEAD_FROM", "code_image", "code_lifting", "new_coders"]
+
+#: Padded pixels from which a decoder decodes a subband's quadtree ahead, in a worker thread.
+AHEAD_FROM = 256 * 256
 
 
 def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
@@ -113,31 +118,23 @@ def code_image(
     _cut(coders, segments)
     out = []
     slices = subband_slices(shape, header.levels)
-    for index, (_, orientation, where) in enumerate(slices):
-        level = header.levels - index // 3
-        if level <= upto:
+    geometry = partial(
+        _geometry, coders, segments, header, None if decoding else trees, out, known, lifting, plans, decoding
+    )
+    # A decoder decodes the next subband's quadtree in a worker thread while it decodes the bins of
+    # this one (the streams are apart; the quadtree's contexts read the subbands decoded before).
+    ahead = decoding and size >= AHEAD_FROM and CORES > 1 and not one_of_many()
+    pending = None
+    for index, (_, _, where) in enumerate(slices):
+        if header.levels - index // 3 <= upto:
             break
         if reached is not None:
             reached(index)
-        band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
-        if header.transform == "bandelet":
-            tree = code_tree(
-                splits,
-                dirs,
-                None if decoding else trees[index],
-                band,
-                reference_of(out, index, orientation),
-                _activity(known, shape, header.levels, index),
-            )
-        else:
-            tree = flat_quadtree(band, root_width(band))
+        tree, (squares, rest) = geometry(index) if pending is None else pending.result()
         out.append(tree)
-        plan = None if plans is None else plans.get(index)
-        if plan is None:
-            plan = subband_plan(shape, header.levels, index, tree, header.transform_1d)
-            if plans is not None:
-                plans[index] = plan
-        squares, rest = plan
+        pending = None
+        if ahead and index + 1 < len(slices) and header.levels - (index + 1) // 3 > upto:
+            pending = workers().submit(geometry, index + 1)
         for c, q in enumerate(quantized):
             if squares.order.size:
                 hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
@@ -145,18 +142,61 @@ def code_image(
                 view = known[c].reshape(shape)[where]
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             coefficients.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
-        if index % 3 == 2:
-            if level == header.lifting and (decoding or lifting is not None):  # else: a price only
-                fields = code_lifting(dirs, header, None if decoding else lifting)
-                if decoding and lifting is not None:
-                    lifting.extend(fields)
-            _cut(coders, segments)
+        if index % 3 == 2:  # the coefficients' stream cut after each level (the trees': _geometry)
+            _cut(coders[2:], segments[2:])
     if reached is not None:
         reached(len(slices))
     if not decoding:
         for coder, parts in zip(coders, segments, strict=True):
             coder.segments = parts
     return out, quantized, spent
+
+
+def _geometry(
+    coders: tuple,
+    segments: list,
+    header: Header,
+    trees: list | None,
+    out: list,
+    known: list[np.ndarray],
+    lifting: list | None,
+    plans: dict | None,
+    decoding: bool,
+    index: int,
+):
+    """The quadtree of detail subband ``index`` (``trees[index]`` coded, or decoded; ``out``: those of
+    the subbands before it) and its coding order (:func:`bandelets.coding.order.subband_plan`, from
+    ``plans`` where there); after the last subband of a level, the lifting's directions
+    (:func:`code_lifting`) and the cut of the trees' two streams. Reads ``known`` on the subband of the
+    level above only (:func:`_activity`): a decoder runs it while it decodes the bins of ``index - 1``."""
+    splits, dirs, _ = coders
+    shape = padded_shape((header.height, header.width), header.levels)
+    _, orientation, where = subband_slices(shape, header.levels)[index]
+    band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
+    if header.transform == "bandelet":
+        tree = code_tree(
+            splits,
+            dirs,
+            None if decoding else trees[index],
+            band,
+            reference_of(out, index, orientation),
+            _activity(known, shape, header.levels, index),
+        )
+    else:
+        tree = flat_quadtree(band, root_width(band))
+    plan = None if plans is None else plans.get(index)
+    if plan is None:
+        plan = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        if plans is not None:
+            plans[index] = plan
+    if index % 3 == 2:
+        level = header.levels - index // 3
+        if level == header.lifting and (decoding or lifting is not None):  # else: a price only
+            fields = code_lifting(dirs, header, None if decoding else lifting)
+            if decoding and lifting is not None:
+                lifting.extend(fields)
+        _cut(coders[:2], segments[:2])
+    return tree, plan
 
 
 def _cut(coders: tuple, segments: list[list[bytes]]) -> None:
