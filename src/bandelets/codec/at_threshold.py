@@ -16,6 +16,7 @@ from ..coding.order import approximation_plan
 from ..format.header import Header, pack
 from ..format.quantizer import dequantize, quantize
 from ..metrics import AngularError
+from ..runtime.threads import each
 from ..search.basis import best_trees
 from ..search.lagrangian import LAMBDA
 from ..search.quantization import optimise_bins
@@ -75,7 +76,12 @@ def encode_at_threshold(
     if header.frames:
         coefficients, before = _local_frames(source, header)
     trees = search(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
-    bandelets = [apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients]
+    # The channels in threads where the coding passes run in step (bandelets.codec.pipeline).
+    bandelets = each(
+        lambda c: apply_trees(c, header.levels, trees, bandeletize, header.transform_1d),
+        coefficients,
+        in_step(header),
+    )
     quantized = [quantize(b, threshold) for b in bandelets]
     # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
     # its context, then the bins between 0 and +-1 are chosen again and the image coded again
