@@ -87,7 +87,8 @@ def code_image(
     ``reached``: called with ``index`` before detail subband ``index`` is coded, and with the count
     of subbands after the last (an encoder's two passes in step, :mod:`bandelets.codec.pipeline`).
     ``plans``: the coding orders of the subbands by index (:func:`bandelets.coding.order.subband_plan`),
-    read where present and added where not (two passes over the same trees share them).
+    taken out where present and added where not (of two passes over the same trees, the first adds
+    them and the second takes them: each plan is made once and held no longer than the second needs).
     ``spent``: where the code lengths are written (zeros, shape (H * W,) per channel; made if None).
 
     ``estimate``: the approximation is coded with version 17's model
@@ -165,10 +166,11 @@ def _geometry(
     index: int,
 ):
     """The quadtree of detail subband ``index`` (``trees[index]`` coded, or decoded; ``out``: those of
-    the subbands before it) and its coding order (:func:`bandelets.coding.order.subband_plan`, from
-    ``plans`` where there); after the last subband of a level, the lifting's directions
-    (:func:`code_lifting`) and the cut of the trees' two streams. Reads ``known`` on the subband of the
-    level above only (:func:`_activity`): a decoder runs it while it decodes the bins of ``index - 1``."""
+    the subbands before it) and its coding order (:func:`bandelets.coding.order.subband_plan`, taken
+    out of ``plans`` where there, else added to it); after the last subband of a level, the lifting's
+    directions (:func:`code_lifting`) and the cut of the trees' two streams. Reads ``known`` on the
+    subband of the level above only (:func:`_activity`): a decoder runs it while it decodes the bins of
+    ``index - 1``."""
     splits, dirs, _ = coders
     shape = padded_shape((header.height, header.width), header.levels)
     _, orientation, where = subband_slices(shape, header.levels)[index]
@@ -184,7 +186,7 @@ def _geometry(
         )
     else:
         tree = flat_quadtree(band, root_width(band))
-    plan = None if plans is None else plans.get(index)
+    plan = None if plans is None else plans.pop(index, None)
     if plan is None:
         plan = subband_plan(shape, header.levels, index, tree, header.transform_1d)
         if plans is not None:
