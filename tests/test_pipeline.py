@@ -29,6 +29,7 @@ def _encodes(monkeypatch, stepped: bool, image, **target) -> tuple[bytes, int]:
         calls.append(1)
         return pipeline.code_in_step(*args)
 
+    monkeypatch.setattr(pipeline, "IN_STEP_FROM", 256 * 256)  # small images, quick tests
     monkeypatch.setattr(at_threshold, "in_step", lambda header: stepped and pipeline.in_step(header))
     monkeypatch.setattr(at_threshold, "code_in_step", counted)
     return bandelets.encode(image, kind="normal-map", **target), len(calls)
@@ -62,8 +63,8 @@ def test_not_in_step_below_its_size_nor_inside_a_map():
             threshold=0.1,
         )
 
-    large = header(512)
-    assert not pipeline.in_step(header(128))
+    large = header(1024)
+    assert not pipeline.in_step(header(512))
     assert not pipeline.in_step(replace(large, frames=True))
     assert pipeline.in_step(large) == (threads.CORES > 1)
     assert list(threads.thread_map(lambda _: pipeline.in_step(large), range(2))) == [False, False]
@@ -79,6 +80,7 @@ def test_an_error_of_the_first_pass_reaches_the_caller(monkeypatch):
         return original(coders, header, trees, quantized, **kwargs)
 
     original = pipeline.code_image
+    monkeypatch.setattr(pipeline, "IN_STEP_FROM", 256 * 256)
     monkeypatch.setattr(pipeline, "code_image", failing)
     with pytest.raises(RuntimeError, match="first pass failed"):
         bandelets.encode(crease_normal_map(256), kind="normal-map", threshold=0.02)
