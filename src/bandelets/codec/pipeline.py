@@ -89,7 +89,8 @@ def code_in_step(
     coders = new_coders()
     try:
         # The second pass writes its code lengths, which nothing reads, over the prices of the subbands
-        # it has chosen the bins of (the first pass is past them): no image of them more in memory.
+        # it has chosen the bins of (the first pass is past them) and of the approximation (whose bins
+        # are not chosen again): no image of them more in memory.
         trees, _, _ = code_image(
             coders, header, trees, flat, lifting=lifting, reached=chosen, plans=plans, spent=prices
         )
