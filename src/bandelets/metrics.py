@@ -14,7 +14,7 @@ from numba import njit
 
 from .format.fields import Kind
 from .format.samples import as_read
-from .runtime.threads import CORES, workers
+from .runtime.threads import CORES, by_rows, workers
 from .transform.normals import THREADED_PIXELS, as_real, hemisphere, unit_length, unit_vectors, with_z
 
 __all__ = [
@@ -149,7 +149,7 @@ def psnr_of_channels(
         measure = psnr_against(reference, kind)
         rows, cols = reference.shape[:2]
         return lambda channels: measure(as_read(np.moveaxis(channels[:, :rows, :cols], 0, -1), kind, depth))
-    reference = unit_vectors(with_z(reference) if reference.shape[-1] == 2 else reference)
+    reference = by_rows(unit_vectors, with_z(reference) if reference.shape[-1] == 2 else reference)
     top, samples = peak(reference, kind), reference.size
     # Only the planes are kept: the encoder holds this through rate control.
     planes = np.ascontiguousarray(np.moveaxis(reference, -1, 0))

@@ -16,6 +16,7 @@ from ..coding.order import approximation_plan
 from ..format.header import Header, pack
 from ..format.quantizer import dequantize, quantize
 from ..metrics import AngularError
+from ..runtime.threads import each
 from ..search.basis import best_trees
 from ..search.lagrangian import LAMBDA
 from ..search.quantization import optimise_bins
@@ -23,6 +24,7 @@ from ..transform import frames
 from ..transform.bandeletize import bandeletize, debandeletize
 from ..transform.bandelets import apply_trees
 from ..transform.wavelets import subband_slices
+from .pipeline import code_in_step, in_step
 
 __all__ = ["RDOQ_LAMBDA", "Encoded", "encode_at_threshold"]
 
@@ -74,10 +76,21 @@ def encode_at_threshold(
     if header.frames:
         coefficients, before = _local_frames(source, header)
     trees = search(coefficients, header.levels, threshold, header.transform, header.transform_1d, before)
-    bandelets = [apply_trees(c, header.levels, trees, bandeletize, header.transform_1d) for c in coefficients]
+    # The channels in threads where the coding passes run in step (bandelets.codec.pipeline).
+    bandelets = each(
+        lambda c: apply_trees(c, header.levels, trees, bandeletize, header.transform_1d),
+        coefficients,
+        in_step(header),
+    )
     quantized = [quantize(b, threshold) for b in bandelets]
     # Rate-distortion optimised quantization: a first coding pass prices every coefficient in
-    # its context, then the bins between 0 and +-1 are chosen again and the image coded again.
+    # its context, then the bins between 0 and +-1 are chosen again and the image coded again
+    # (on two cores, the two passes in step: bandelets.codec.pipeline).
+    if in_step(header):
+        coders, trees = code_in_step(bandelets, quantized, header, trees, lifting, RDOQ_LAMBDA)
+        return _encoded(
+            coders, header, threshold, _sse(bandelets, quantized, header), trees, quantized, lifting
+        )
     prices = _prices(quantized, header, trees)
     if header.frames:
         # The frames of a level are made from the coarser levels as the decoder decodes them, so
@@ -96,15 +109,27 @@ def encode_at_threshold(
     for b, q, bits in zip(bandelets, quantized, prices, strict=True):
         optimise_bins(b, q, bits, threshold, RDOQ_LAMBDA)
     del prices
-    # The weighted normal component's error is the weight times the error it makes.
-    scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
-    sse = sum(
-        float(np.sum((b - dequantize(q, threshold)) ** 2)) / scale**2
-        for b, q, scale in zip(bandelets, quantized, scales, strict=True)
-    )
+    sse = _sse(bandelets, quantized, header)
     del bandelets  # not held while coding: the peak of a large image's encoding
     coders = new_coders()
     trees, _, _ = code_image(coders, header, trees, [q.ravel() for q in quantized], lifting=lifting)
+    return _encoded(coders, header, threshold, sse, trees, quantized, lifting)
+
+
+def _sse(bandelets: list[np.ndarray], quantized: list[np.ndarray], header: Header) -> float:
+    """The squared quantization error of the bins ``quantized`` of ``bandelets``, summed."""
+    # The weighted normal component's error is the weight times the error it makes.
+    scales = (header.normal_weight, 1.0, 1.0) if header.frames else (1.0,) * len(bandelets)
+    return sum(
+        float(np.sum((b - dequantize(q, header.threshold)) ** 2)) / scale**2
+        for b, q, scale in zip(bandelets, quantized, scales, strict=True)
+    )
+
+
+def _encoded(
+    coders: tuple, header: Header, threshold: float, sse: float, trees, quantized, lifting
+) -> Encoded:
+    """The file of the streams ``coders`` have coded, and what the encoder knows of it."""
     # Format version 19: the streams stored level by level (bandelets.format.levels).
     segments = tuple(zip(*([len(p) for p in c.segments] for c in coders), strict=True))
     header = replace(header, segments=segments)

@@ -239,14 +239,14 @@ class _PieceEncoder:
             elif ratio < RIESZ_TRIAL_BELOW and tries:
                 trials.append(Candidate(pair, levels, turn=sign))
             del pair
-        self.coded = None
+        coded, self.coded = self.coded, None
         # A loop per alternative compares restored files: without the restoration and the loop
         # filter, the least cost at one threshold decides at every effort.
         looped = options.effort >= FULL_TRIALS_FROM and (options.restore or options.loop_filter)
         if trials and t is not None and target > 0 and not looped:
             candidate, trials = self._cheapest(candidate, trials, t, target), []
         self.candidate = candidate
-        self._make_measures()
+        self._make_measures(coded)
         return candidate, trials
 
     def _cheapest(self, candidate: Candidate, trials: list[Candidate], t: float, target: int) -> Candidate:
@@ -278,13 +278,14 @@ class _PieceEncoder:
             self.t_max = raised_t_max(best.coefficients, self.t_max)
         return best
 
-    def _make_measures(self) -> None:
+    def _make_measures(self, coded: np.ndarray) -> None:
+        """The measures, ``coded`` the channels coded (:func:`bandelets.codec.plan.plan_image`)."""
         plan, options, reference, kind = self.plan, self.options, self.reference, self.options.kind
         if options.restore or options.loop_filter:  # what the user gets: the values written at its depth
             self.measures.channels = metrics.psnr_of_channels(reference, kind, plan.depth, plan.equidistant)
         if options.loop_filter:  # what the coded channels stand for, and the error of a PSNR
             planes = (
-                normals.equidistant(reference)
+                coded  # the equidistant coordinates of the reference: not made again
                 if plan.equidistant
                 else normals.with_z(reference)  # x, y coded with their z (box mips)
                 if reference.ndim == 3 and reference.shape[-1] < plan.channels

@@ -17,6 +17,7 @@ import numpy as np
 from ..format.checks import check_image
 from ..format.fields import Kind, Layout
 from ..format.header import implied_options
+from ..runtime.threads import by_rows
 from ..transform import normals
 from ..transform.wavelets import max_levels
 from .alternatives import TRIAL_PIXELS
@@ -74,7 +75,7 @@ def plan_image(array, options: EncodeOptions) -> tuple[Plan, np.ndarray, np.ndar
         array, depth, layout = prepare(array, depth, options.xy)
     x = given = check_image(array, kind, options.max_memory)
     if kind == Kind.NORMAL_MAP:
-        x = normals.unit_vectors(x)
+        x = by_rows(normals.unit_vectors, x)  # elementwise: the rows' halves in two threads
     levels = max_levels(x.shape[:2])
     geometry = geometry_options(options, x.shape[:2])
     # A map of normals that face one way is coded as two channels: the azimuthal equidistant
@@ -91,7 +92,7 @@ def plan_image(array, options: EncodeOptions) -> tuple[Plan, np.ndarray, np.ndar
     if options.extension == "spherical" or folded:  # no padding: the fold must stay on the image's border
         while levels > 1 and x.shape[0] % (1 << levels):
             levels -= 1
-    coded = (normals.equidistant(x) if layout == Layout.XYZ else given[..., :2]) if two else x
+    coded = (by_rows(normals.equidistant, x) if layout == Layout.XYZ else given[..., :2]) if two else x
     if kind == Kind.NORMAL_MAP:  # three channels: always in local frames
         geometry = implied_options(kind, coded.shape[2])
     if options.riesz and not two:

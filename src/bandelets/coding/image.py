@@ -6,10 +6,14 @@ encoder and the decoder, so the two cannot disagree on it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
+
 import numpy as np
 
 from ..format.fields import padded_shape
 from ..format.header import Header
+from ..runtime.threads import CORES, one_of_many, workers
 from ..transform.bandeletize import debandeletize_bins
 from ..transform.quadtree import flat_quadtree, root_width
 from ..transform.wavelets import subband_slices
@@ -18,7 +22,10 @@ from .order import approximation_plan, subband_plan
 from .squarecontexts import square_hints
 from .trees import N_DIRECTION_CONTEXTS, N_SPLIT_CONTEXTS, code_tree, reference_of
 
-__all__ = ["code_image", "code_lifting", "new_coders"]
+__all__ = ["AHEAD_FROM", "code_image", "code_lifting", "new_coders"]
+
+#: Padded pixels from which a decoder decodes a subband's quadtree ahead, in a worker thread.
+AHEAD_FROM = 256 * 256
 
 
 def _activity(known: list[np.ndarray], shape: tuple[int, int], levels: int, index: int):
@@ -55,6 +62,9 @@ def code_image(
     *,
     lifting: list | None = None,
     upto: int = 0,
+    reached: Callable[[int], None] | None = None,
+    plans: dict | None = None,
+    spent: list[np.ndarray] | None = None,
 ) -> tuple[list, list, list]:
     """Code (``trees`` and ``quantized`` given) or decode everything the streams hold.
 
@@ -74,6 +84,13 @@ def code_image(
     coarser than ``upto`` only (1 = finest; 0: all), the bins of the others left at zero; the
     trees returned are then those of the levels decoded.
 
+    ``reached``: called with ``index`` before detail subband ``index`` is coded, and with the count
+    of subbands after the last (an encoder's two passes in step, :mod:`bandelets.codec.pipeline`).
+    ``plans``: the coding orders of the subbands by index (:func:`bandelets.coding.order.subband_plan`),
+    taken out where present and added where not (of two passes over the same trees, the first adds
+    them and the second takes them: each plan is made once and held no longer than the second needs).
+    ``spent``: where the code lengths are written (zeros, shape (H * W,) per channel; made if None).
+
     ``estimate``: the approximation is coded with version 17's model
     (:func:`bandelets.coding.coefficients.code_coefficients`), not the file's
     (:mod:`bandelets.coding.approximation`),
@@ -92,7 +109,7 @@ def code_image(
     if decoding:
         quantized = [np.zeros(size, np.int32) for _ in range(header.channels)]
     known = [np.zeros(size, np.int64) for _ in quantized]
-    spent = [np.zeros(size) for _ in quantized]
+    spent = [np.zeros(size) for _ in quantized] if spent is None else spent
     coarse = approximation_plan(shape, header.levels)
     guides = [np.zeros(0, np.int32)] + quantized[:-1]
     for c, q in enumerate(quantized):
@@ -101,24 +118,24 @@ def code_image(
     segments = [[] for _ in coders]
     _cut(coders, segments)
     out = []
-    for index, (_, orientation, where) in enumerate(subband_slices(shape, header.levels)):
-        level = header.levels - index // 3
-        if level <= upto:
+    slices = subband_slices(shape, header.levels)
+    geometry = partial(
+        _geometry, coders, segments, header, None if decoding else trees, out, known, lifting, plans, decoding
+    )
+    # A decoder decodes the next subband's quadtree in a worker thread while it decodes the bins of
+    # this one (the streams are apart; the quadtree's contexts read the subbands decoded before).
+    ahead = decoding and size >= AHEAD_FROM and CORES > 1 and not one_of_many()
+    pending = None
+    for index, (_, _, where) in enumerate(slices):
+        if header.levels - index // 3 <= upto:
             break
-        band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
-        if header.transform == "bandelet":
-            tree = code_tree(
-                splits,
-                dirs,
-                None if decoding else trees[index],
-                band,
-                reference_of(out, index, orientation),
-                _activity(known, shape, header.levels, index),
-            )
-        else:
-            tree = flat_quadtree(band, root_width(band))
+        if reached is not None:
+            reached(index)
+        tree, (squares, rest) = geometry(index) if pending is None else pending.result()
         out.append(tree)
-        squares, rest = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        pending = None
+        if ahead and index + 1 < len(slices) and header.levels - (index + 1) // 3 > upto:
+            pending = workers().submit(geometry, index + 1)
         for c, q in enumerate(quantized):
             if squares.order.size:
                 hints = square_hints(known[c], shape, header.levels, index, tree, header.transform_1d)
@@ -126,16 +143,62 @@ def code_image(
                 view = known[c].reshape(shape)[where]
                 debandeletize_bins(view, tree, header.threshold, header.transform_1d)
             coefficients.code_coefficients(coeffs, q, rest, known[c], guides[c], spent[c])
-        if index % 3 == 2:
-            if level == header.lifting and (decoding or lifting is not None):  # else: a price only
-                fields = code_lifting(dirs, header, None if decoding else lifting)
-                if decoding and lifting is not None:
-                    lifting.extend(fields)
-            _cut(coders, segments)
+        if index % 3 == 2:  # the coefficients' stream cut after each level (the trees': _geometry)
+            _cut(coders[2:], segments[2:])
+    if reached is not None:
+        reached(len(slices))
     if not decoding:
         for coder, parts in zip(coders, segments, strict=True):
             coder.segments = parts
     return out, quantized, spent
+
+
+def _geometry(
+    coders: tuple,
+    segments: list,
+    header: Header,
+    trees: list | None,
+    out: list,
+    known: list[np.ndarray],
+    lifting: list | None,
+    plans: dict | None,
+    decoding: bool,
+    index: int,
+):
+    """The quadtree of detail subband ``index`` (``trees[index]`` coded, or decoded; ``out``: those of
+    the subbands before it) and its coding order (:func:`bandelets.coding.order.subband_plan`, taken
+    out of ``plans`` where there, else added to it); after the last subband of a level, the lifting's
+    directions (:func:`code_lifting`) and the cut of the trees' two streams. Reads ``known`` on the
+    subband of the level above only (:func:`_activity`): a decoder runs it while it decodes the bins of
+    ``index - 1``."""
+    splits, dirs, _ = coders
+    shape = padded_shape((header.height, header.width), header.levels)
+    _, orientation, where = subband_slices(shape, header.levels)[index]
+    band = (where[0].stop - where[0].start, where[1].stop - where[1].start)
+    if header.transform == "bandelet":
+        tree = code_tree(
+            splits,
+            dirs,
+            None if decoding else trees[index],
+            band,
+            reference_of(out, index, orientation),
+            _activity(known, shape, header.levels, index),
+        )
+    else:
+        tree = flat_quadtree(band, root_width(band))
+    plan = None if plans is None else plans.pop(index, None)
+    if plan is None:
+        plan = subband_plan(shape, header.levels, index, tree, header.transform_1d)
+        if plans is not None:
+            plans[index] = plan
+    if index % 3 == 2:
+        level = header.levels - index // 3
+        if level == header.lifting and (decoding or lifting is not None):  # else: a price only
+            fields = code_lifting(dirs, header, None if decoding else lifting)
+            if decoding and lifting is not None:
+                lifting.extend(fields)
+        _cut(coders[:2], segments[:2])
+    return tree, plan
 
 
 def _cut(coders: tuple, segments: list[list[bytes]]) -> None:

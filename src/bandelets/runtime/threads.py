@@ -11,12 +11,16 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["CORES", "each", "thread_map", "workers"]
+import numpy as np
+
+__all__ = ["BY_ROWS_FROM", "CORES", "by_rows", "each", "one_of_many", "thread_map", "workers"]
 
 #: Cores this process may run on (its CPU affinity): the kernels that split their rows in threads ask.
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
+#: ``item``: set in the threads of a :func:`thread_map`, which share the cores among its items.
+_MAPPED = threading.local()
 if hasattr(os, "register_at_fork"):  # a forked child has the pool but not its thread: a new one
     os.register_at_fork(after_in_child=lambda: globals().update(_POOL=None, _POOL_LOCK=threading.Lock()))
 
@@ -41,13 +45,18 @@ def thread_map(function, items, workers: int = 2):
     if workers < 2:
         yield from map(function, items)
         return
+
+    def marked(item):
+        _MAPPED.item = True
+        return function(item)
+
     with ThreadPoolExecutor(max_workers=workers) as pool:
         items = iter(items)
-        pending = [pool.submit(function, item) for _, item in zip(range(workers), items, strict=False)]
+        pending = [pool.submit(marked, item) for _, item in zip(range(workers), items, strict=False)]
         while pending:
             result = pending.pop(0).result()
             for item in items:
-                pending.append(pool.submit(function, item))
+                pending.append(pool.submit(marked, item))
                 break
             yield result
 
@@ -65,3 +74,30 @@ def each(function, items, threaded: bool = True) -> list:
     first, *others = items
     futures = [workers().submit(function, item) for item in others]
     return [function(first), *(future.result() for future in futures)]
+
+
+def one_of_many() -> bool:
+    """Whether the calling thread already shares the cores with others of the library's: one of the
+    :func:`workers` (which must not wait on its own pool) or an item of a :func:`thread_map`."""
+    return threading.current_thread().name.startswith("bandelets") or getattr(_MAPPED, "item", False)
+
+
+#: Values from which :func:`by_rows` splits the rows in two threads (below, the hand-over costs more).
+BY_ROWS_FROM = 2**20
+
+
+def by_rows(function, array: np.ndarray) -> np.ndarray:
+    """``function(array)`` for a ``function`` that makes each row of its result from the same row of
+    ``array`` alone (numpy's elementwise functions, which let go of the GIL on large arrays): from
+    :data:`BY_ROWS_FROM` values on, the second half of the rows in a worker thread, the same numbers."""
+    rows = array.shape[0]
+    if array.size < BY_ROWS_FROM or rows < 2 or CORES < 2 or one_of_many():
+        return function(array)
+    half = rows // 2
+    second = workers().submit(function, array[half:])
+    first = function(array[:half])
+    out = np.empty((rows, *first.shape[1:]), first.dtype)
+    out[:half] = first
+    del first
+    out[half:] = second.result()
+    return out
