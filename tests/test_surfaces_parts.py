@@ -59,6 +59,21 @@ def test_two_closed_parts_beat_one_chart_image():
     assert ours > metrics.hausdorff_psnr(both, charted, samples=50_000) + 3.0
 
 
+def test_the_chart_route_is_coded_only_beside_a_rest(monkeypatch):
+    """Every component closed of genus 0: the record alone (no chart image coded to compare);
+    beside an open part: the chart route's file of the whole mesh is coded too, and the rest's."""
+    coded = []
+    chart = chartcodec.encode_charts
+    monkeypatch.setattr(
+        chartcodec, "encode_charts", lambda mesh, *a, **k: coded.append(mesh) or chart(mesh, *a, **k)
+    )
+    both = trimesh.util.concatenate([_bumpy(3, 0.0), _bumpy(3, 3.0)])
+    assert parts.is_parts_file(encode_mesh(both, bits_per_vertex=2)) and coded == []
+    mesh = _sphere_and_cut()
+    encode_mesh(mesh, bits_per_vertex=4)
+    assert sorted(len(m.vertices) for m in coded) == [len(mesh.vertices) - 2562, len(mesh.vertices)]
+
+
 def test_two_closed_parts_through_the_command_line(tmp_path, capsys):
     mesh = trimesh.util.concatenate([_bumpy(3, 0.0), _bumpy(3, 3.0)])
     source, bdl, out = tmp_path / "in.ply", tmp_path / "m.bdl", tmp_path / "out.ply"

@@ -14,6 +14,7 @@ count of the original mesh, down to which the decoder simplifies that mesh by de
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -328,7 +329,7 @@ def encode_mesh(
             bits = (1.0 if bpp is None else bpp) * size * size
         chosen = {"transform": transform, "frames": frames, "normal_weight": normal_weight}
         chosen |= {"restore": restore, "max_memory": max_memory}
-        return _parts_or(mesh, bits, encode_charts(mesh, bits, size=size, **chosen), chosen)
+        return _parts_or(mesh, bits, lambda: encode_charts(mesh, bits, size=size, **chosen), chosen)
     size = size or auto_size(bits)
     check_size(size)
     check_mesh_memory(size, max_memory)  # the decoder's limit
@@ -337,25 +338,37 @@ def encode_mesh(
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
-def _parts_or(mesh, bits: float, charted: bytes, chosen: dict) -> bytes:
-    """The chart route's file, or a record of parts (:mod:`.parts`: the closed genus-0 components
-    each on the spherical path, the rest on the chart route) where the mesh has such components
-    and that record measures better (Hausdorff PSNR, :data:`.chartcodec.TRIAL_SAMPLES`)."""
+def _parts_or(mesh, bits: float, charted: Callable[[], bytes], chosen: dict) -> bytes:
+    """The chart route's file (``charted()``), or a record of parts (:mod:`.parts`: the closed
+    genus-0 components each on the spherical path, the rest on the chart route) where the mesh has
+    such components: alone when every component is such a part, else where it measures better
+    (Hausdorff PSNR, :data:`.chartcodec.TRIAL_SAMPLES`).
+
+    With no rest, the chart route is not coded for the comparison (it doubled the encode time):
+    each part is then a mesh the spherical path takes alone, and there the record led the chart
+    route at Draco's two smallest files on both such meshes of benchmarks/mesh_topology.py (two
+    spheres +2.6 and +6.1 dB, the bunny with the fandisk +13.7 and +12.8 dB). A rest can tip it
+    the other way (a bumpy sphere beside a small cut one: the rest's share of the bits left it at
+    49.6 dB, the chart route's file measured 6 dB above the record), so there both are coded and
+    measured.
+    """
     from . import parts
     from .chartcodec import TRIAL_SAMPLES, check_surface, faces_bytes
 
     vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     pieces = parts.split(vertices, faces)
     if pieces is None:
-        return charted
+        return charted()
     try:  # the rest's faces, and the least its positions take beside them (chartcodec.encode_charts)
         fixed = [0 if is_genus0(piece) else faces_bytes(piece) * 9 // 8 + 48 for piece in pieces]
         record = parts.encode_parts(
             pieces, bits, lambda part, n: encode_mesh(part, n_bytes=n, **chosen), fixed
         )
     except ValueError:  # a part's share too small for its faces, a rest of a single triangle
-        return charted
-    return parts.better(mesh, [charted, record], decode_mesh, TRIAL_SAMPLES)
+        return charted()
+    if not any(fixed):  # no rest: every part on the spherical path
+        return record
+    return parts.better(mesh, [charted(), record], decode_mesh, TRIAL_SAMPLES)
 
 
 def is_genus0(mesh) -> bool:
