@@ -27,9 +27,9 @@ _RATIO = 4  # vertices of a level over those of the next coarser one
 _CANDIDATES = 12  # nearest coarse vertices whose triangles are tried for a closest point
 # Levels of more vertices are decimated without MeshLab's check that no collapse turns a face's
 # normal over: on the 55,730-vertex bunny of benchmarks/mesh_pipeline.py that check is half of
-# the first decimation's time (1.8 against 3.4 s of CPU), and the map measured the same (stretch
-# 1.254 against 1.253, Hausdorff PSNR at 4 bits per vertex 83.5 against 82.5 dB). The shared
-# meshes (up to 19,970 vertices) keep it.
+# the first decimation's time (2.0 against 3.4 s of CPU), and the map is as good (stretch 1.257
+# against 1.254, Hausdorff PSNR at 4 bits per vertex 83.41 against 82.37 dB). The shared meshes
+# (up to 19,970 vertices) keep it.
 _NORMALS_CHECKED_UP_TO = 30_000
 
 
