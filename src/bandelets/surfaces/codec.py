@@ -338,19 +338,26 @@ def encode_mesh(
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
+#: Below this many bits per vertex, a mesh whose every component is a closed genus-0 part takes
+#: the record of parts without the chart route coded for the comparison (:func:`_parts_or`).
+RECORD_ALONE_BELOW = 5.0
+
+
 def _parts_or(mesh, bits: float, charted: Callable[[], bytes], chosen: dict) -> bytes:
     """The chart route's file (``charted()``), or a record of parts (:mod:`.parts`: the closed
     genus-0 components each on the spherical path, the rest on the chart route) where the mesh has
-    such components: alone when every component is such a part, else where it measures better
-    (Hausdorff PSNR, :data:`.chartcodec.TRIAL_SAMPLES`).
+    such components and the record measures better (Hausdorff PSNR,
+    :data:`.chartcodec.TRIAL_SAMPLES`), or without the comparison when every component is such a
+    part and the target is below :data:`RECORD_ALONE_BELOW` bits per vertex.
 
-    With no rest, the chart route is not coded for the comparison (it doubled the encode time):
-    each part is then a mesh the spherical path takes alone, and there the record led the chart
-    route at Draco's two smallest files on both such meshes of benchmarks/mesh_topology.py (two
-    spheres +2.6 and +6.1 dB, the bunny with the fandisk +13.7 and +12.8 dB). A rest can tip it
-    the other way (a bumpy sphere beside a small cut one: the rest's share of the bits left it at
-    49.6 dB, the chart route's file measured 6 dB above the record), so there both are coded and
-    measured.
+    The chart route coded for the comparison doubled the encode time. With no rest it loses at low
+    rates: the two spheres and the bunny with the fandisk of benchmarks/mesh_topology.py at Draco's
+    two smallest files (3.7 to 5.9 bits per vertex), by 2.6 to 13.9 dB; two icospheres (1,284 and
+    5,124 vertices) at 4 and 5 bits per vertex, by 0.7 to 3.6 dB. At higher rates the spherical
+    path's resampling caps the record, and the chart route keeps the input's vertices: the
+    icospheres lead the record by 2.0 and 2.2 dB at 6 bits per vertex, 5.9 to 17.8 dB at 8 and 16. A
+    rest can tip it at any rate (a bumpy sphere beside a small cut one at 4 bits per vertex: the
+    rest's share left it at 49.6 dB, the chart route's file measured 6 dB above the record).
     """
     from . import parts
     from .chartcodec import TRIAL_SAMPLES, check_surface, faces_bytes
@@ -366,7 +373,7 @@ def _parts_or(mesh, bits: float, charted: Callable[[], bytes], chosen: dict) -> 
         )
     except ValueError:  # a part's share too small for its faces, a rest of a single triangle
         return charted()
-    if not any(fixed):  # no rest: every part on the spherical path
+    if not any(fixed) and bits < RECORD_ALONE_BELOW * len(vertices):
         return record
     return parts.better(mesh, [charted(), record], decode_mesh, TRIAL_SAMPLES)
 
