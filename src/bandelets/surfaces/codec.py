@@ -354,9 +354,9 @@ def _parts_or(mesh, bits: float, charted: Callable[[], bytes], chosen: dict) -> 
     rates: the two spheres and the bunny with the fandisk of benchmarks/mesh_topology.py at Draco's
     two smallest files (3.7 to 5.9 bits per vertex), by 2.6 to 13.9 dB; two icospheres (1,284 and
     5,124 vertices) at 4 and 5 bits per vertex, by 0.7 to 3.6 dB. At higher rates the spherical
-    path's resampling caps the record, and the chart route keeps the input's vertices: the
-    icospheres lead the record by 2.0 and 2.2 dB at 6 bits per vertex, 5.9 to 17.8 dB at 8 and 16. A
-    rest can tip it at any rate (a bumpy sphere beside a small cut one at 4 bits per vertex: the
+    path's resampling caps the record, and the chart route keeps the input's vertices: on the
+    icospheres it leads the record by 2.0 and 2.2 dB at 6 bits per vertex, 5.9 to 17.8 dB at 8 and
+    16. A rest can tip it at any rate (a bumpy sphere beside a small cut one at 4 bits per vertex: the
     rest's share left it at 49.6 dB, the chart route's file measured 6 dB above the record).
     """
     from . import parts
