@@ -13,7 +13,7 @@ pytest.importorskip("DracoPy")
 pytest.importorskip("pymeshlab")
 
 from bandelets.apps.cli import main  # noqa: E402
-from bandelets.surfaces import chartcodec, metrics, parts  # noqa: E402
+from bandelets.surfaces import chartcodec, codec, metrics, parts  # noqa: E402
 from bandelets.surfaces.codec import decode_mesh, encode_mesh  # noqa: E402
 
 
@@ -57,6 +57,24 @@ def test_two_closed_parts_beat_one_chart_image():
     charted = chartcodec.decode_charts(chartcodec.encode_charts(both, 8 * n_bytes))
     ours = metrics.hausdorff_psnr(both, decoded, samples=50_000)
     assert ours > metrics.hausdorff_psnr(both, charted, samples=50_000) + 3.0
+
+
+def test_the_chart_route_is_coded_only_beside_a_rest_or_at_high_rates(monkeypatch):
+    """Every component closed of genus 0, at a low rate: the record alone (no chart image coded to
+    compare); at a high rate, or beside an open part: the chart route's file is coded too."""
+    coded = []
+    chart = chartcodec.encode_charts
+    monkeypatch.setattr(
+        chartcodec, "encode_charts", lambda mesh, *a, **k: coded.append(mesh) or chart(mesh, *a, **k)
+    )
+    both = trimesh.util.concatenate([_bumpy(3, 0.0), _bumpy(3, 3.0)])
+    assert parts.is_parts_file(encode_mesh(both, bits_per_vertex=2)) and coded == []
+    encode_mesh(both, bits_per_vertex=codec.RECORD_ALONE_BELOW)
+    assert [len(m.vertices) for m in coded] == [len(both.vertices)]
+    coded.clear()
+    mesh = _sphere_and_cut()
+    encode_mesh(mesh, bits_per_vertex=4)
+    assert sorted(len(m.vertices) for m in coded) == [len(mesh.vertices) - 2562, len(mesh.vertices)]
 
 
 def test_two_closed_parts_through_the_command_line(tmp_path, capsys):

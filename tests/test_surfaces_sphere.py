@@ -152,3 +152,46 @@ def test_relaxation_recovers_its_step_after_a_crushed_start():
     relaxed, _ = _map_level(mesh.vertices, faces, crushed, 3000, 1e-4, 1.0)
     stretch = [area_distortion(mesh.vertices, faces, p)["stretch"] for p in (reference, relaxed)]
     assert stretch[1] < 1.02 * stretch[0]
+
+
+def test_closest_points_and_point_location_agree_with_every_triangle_tried():
+    """The placement's closest points (scalar kernel) and the sampling's walk (queries in any
+    order, not only the scan order it is fast in) find what testing every triangle finds."""
+    from bandelets.surfaces import geometry_image, hierarchy
+
+    mesh = deformed_cube()
+    vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces, np.int64)
+    rng = np.random.default_rng(1)
+    queries = vertices[rng.integers(0, len(vertices), 60)] + rng.normal(scale=0.2, size=(60, 3))
+    face, weights = hierarchy._closest(
+        queries, vertices, faces, np.tile(np.arange(len(vertices)), (60, 1)), *_corners_of(faces)
+    )
+    corners = vertices[faces]
+    found = np.linalg.norm(np.einsum("qk,qkc->qc", weights, corners[face]) - queries, axis=1)
+    # A dense grid on every triangle: never closer than the closest point, and within its spacing.
+    grid = np.array([np.min(np.linalg.norm(_grid_points(corners) - q, axis=2)) for q in queries])
+    assert np.all(found <= grid + 1e-12) and np.all(grid - found < 0.02)
+
+    points = spherical_parameterization(vertices, faces).points
+    directions = rng.normal(size=(2000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    found, weights = geometry_image.locate(faces, points, directions)
+    assert np.all(weights >= 0) and np.allclose(weights.sum(axis=1), 1.0)
+    p = points[faces[found]]
+    for k in range(3):  # on the inner side of each edge of the triangle found
+        sides = np.einsum("ij,ij->i", directions, np.cross(p[:, (k + 1) % 3], p[:, (k + 2) % 3]))
+        assert sides.min() > -1e-12
+
+
+def _corners_of(faces):
+    order = np.argsort(faces.ravel(), kind="stable")
+    return order // 3, np.searchsorted(faces.ravel()[order], np.arange(faces.max() + 2))
+
+
+def _grid_points(corners):
+    """Points of a barycentric grid on each triangle, shape (F, G, 3)."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    s, t = np.meshgrid(np.linspace(0, 1, 21), np.linspace(0, 1, 21))
+    keep = s + t <= 1
+    s, t = s[keep], t[keep]
+    return a[:, None] + s[None, :, None] * (b - a)[:, None] + t[None, :, None] * (c - a)[:, None]

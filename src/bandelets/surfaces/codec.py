@@ -14,6 +14,7 @@ count of the original mesh, down to which the decoder simplifies that mesh by de
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -328,7 +329,7 @@ def encode_mesh(
             bits = (1.0 if bpp is None else bpp) * size * size
         chosen = {"transform": transform, "frames": frames, "normal_weight": normal_weight}
         chosen |= {"restore": restore, "max_memory": max_memory}
-        return _parts_or(mesh, bits, encode_charts(mesh, bits, size=size, **chosen), chosen)
+        return _parts_or(mesh, bits, lambda: encode_charts(mesh, bits, size=size, **chosen), chosen)
     size = size or auto_size(bits)
     check_size(size)
     check_mesh_memory(size, max_memory)  # the decoder's limit
@@ -337,25 +338,44 @@ def encode_mesh(
     return encode_with_stats(image, options, bpp=bits / (image.shape[0] * image.shape[1])).data
 
 
-def _parts_or(mesh, bits: float, charted: bytes, chosen: dict) -> bytes:
-    """The chart route's file, or a record of parts (:mod:`.parts`: the closed genus-0 components
-    each on the spherical path, the rest on the chart route) where the mesh has such components
-    and that record measures better (Hausdorff PSNR, :data:`.chartcodec.TRIAL_SAMPLES`)."""
+#: Below this many bits per vertex, a mesh whose every component is a closed genus-0 part takes
+#: the record of parts without the chart route coded for the comparison (:func:`_parts_or`).
+RECORD_ALONE_BELOW = 5.0
+
+
+def _parts_or(mesh, bits: float, charted: Callable[[], bytes], chosen: dict) -> bytes:
+    """The chart route's file (``charted()``), or a record of parts (:mod:`.parts`: the closed
+    genus-0 components each on the spherical path, the rest on the chart route) where the mesh has
+    such components and the record measures better (Hausdorff PSNR,
+    :data:`.chartcodec.TRIAL_SAMPLES`), or without the comparison when every component is such a
+    part and the target is below :data:`RECORD_ALONE_BELOW` bits per vertex.
+
+    The chart route coded for the comparison doubled the encode time. With no rest it loses at low
+    rates: the two spheres and the bunny with the fandisk of benchmarks/mesh_topology.py at Draco's
+    two smallest files (3.7 to 5.9 bits per vertex), by 2.6 to 13.9 dB; two icospheres (1,284 and
+    5,124 vertices) at 4 and 5 bits per vertex, by 0.7 to 3.6 dB. At higher rates the spherical
+    path's resampling caps the record, and the chart route keeps the input's vertices: on the
+    icospheres it leads the record by 2.0 and 2.2 dB at 6 bits per vertex, 5.9 to 17.8 dB at 8 and
+    16. A rest can tip it at any rate (a bumpy sphere beside a small cut one at 4 bits per vertex: the
+    rest's share left it at 49.6 dB, the chart route's file measured 6 dB above the record).
+    """
     from . import parts
     from .chartcodec import TRIAL_SAMPLES, check_surface, faces_bytes
 
     vertices, faces, _ = check_surface(mesh.vertices, mesh.faces)
     pieces = parts.split(vertices, faces)
     if pieces is None:
-        return charted
+        return charted()
     try:  # the rest's faces, and the least its positions take beside them (chartcodec.encode_charts)
         fixed = [0 if is_genus0(piece) else faces_bytes(piece) * 9 // 8 + 48 for piece in pieces]
         record = parts.encode_parts(
             pieces, bits, lambda part, n: encode_mesh(part, n_bytes=n, **chosen), fixed
         )
     except ValueError:  # a part's share too small for its faces, a rest of a single triangle
-        return charted
-    return parts.better(mesh, [charted, record], decode_mesh, TRIAL_SAMPLES)
+        return charted()
+    if not any(fixed) and bits < RECORD_ALONE_BELOW * len(vertices):
+        return record
+    return parts.better(mesh, [charted(), record], decode_mesh, TRIAL_SAMPLES)
 
 
 def is_genus0(mesh) -> bool:

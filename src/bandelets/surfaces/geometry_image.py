@@ -18,6 +18,7 @@ from __future__ import annotations
 import threading
 
 import numpy as np
+from numba import njit
 
 from . import octahedral
 from .meshlab import confined
@@ -36,12 +37,52 @@ def _neighbours(faces: np.ndarray) -> np.ndarray:
     return (order[where] // 3).reshape(faces.shape)
 
 
+@njit(cache=True, inline="always")
+def _side(q, points, a, b):
+    """``q . (points[a] x points[b])``: positive when ``q`` is on the inner side of edge ab."""
+    ax, ay, az = points[a, 0], points[a, 1], points[a, 2]
+    bx, by, bz = points[b, 0], points[b, 1], points[b, 2]
+    return q[0] * (ay * bz - az * by) + q[1] * (az * bx - ax * bz) + q[2] * (ax * by - ay * bx)
+
+
+@njit(cache=True)
+def _walk(faces, points, neighbours, queries, starts, most_steps):
+    """Each query's triangle, walking from ``starts[i]`` (if -1: the previous query's
+    triangle) across the edge whose side test fails worst, until none fails; -1 for a query
+    that did not arrive in ``most_steps``. Queries in scan order (neighbouring pixels) make
+    most walks from the previous one zero or one step."""
+    found = np.empty(len(queries), dtype=np.int64)
+    current = 0
+    for i in range(len(queries)):
+        q = queries[i]
+        if starts[i] >= 0:
+            current = starts[i]
+        elif current < 0:
+            current = 0
+        for _ in range(most_steps):
+            a, b, c = faces[current, 0], faces[current, 1], faces[current, 2]
+            t0, t1, t2 = _side(q, points, b, c), _side(q, points, c, a), _side(q, points, a, b)
+            worst, value = 0, t0
+            if t1 < value:
+                worst, value = 1, t1
+            if t2 < value:
+                worst, value = 2, t2
+            if value >= 0:
+                break
+            current = neighbours[current, worst]
+        else:
+            current = -1
+        found[i] = current
+    return found
+
+
 def locate(faces: np.ndarray, points: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Find the spherical triangle holding each query direction, and its barycentric weights.
 
-    Walks from the triangle of the nearest vertex towards each query, all queries at once,
-    crossing the edge whose side test fails worst; the few that do not arrive in time are
-    tested against every triangle.
+    Walks from the previous query's triangle towards each query (:func:`_walk`), crossing the
+    edge whose side test fails worst; the few that do not arrive in time walk again from the
+    triangle of their nearest vertex, and those that still do not are tested against every
+    triangle.
 
     Parameters
     ----------
@@ -49,7 +90,7 @@ def locate(faces: np.ndarray, points: np.ndarray, queries: np.ndarray) -> tuple[
     points : ndarray of float, shape (V, 3)
         A flip-free spherical triangulation (unit vectors).
     queries : ndarray of float, shape (Q, 3)
-        Unit vectors.
+        Unit vectors, best in an order where neighbours follow each other.
 
     Returns
     -------
@@ -57,12 +98,9 @@ def locate(faces: np.ndarray, points: np.ndarray, queries: np.ndarray) -> tuple[
     weights : ndarray of float, shape (Q, 3)
         Non-negative, summing to 1: the query's central projection on the chord triangle.
     """
-    from scipy.spatial import cKDTree
-
-    neighbours = _neighbours(faces)
-    vertex_face = np.empty(len(points), dtype=np.int64)
-    vertex_face[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
-    current = vertex_face[cKDTree(points).query(queries)[1]]
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    queries = np.ascontiguousarray(queries, dtype=np.float64)
 
     def side_tests(face, q):
         t = points[faces[face]]  # (Q, 3, 3)
@@ -75,17 +113,18 @@ def locate(faces: np.ndarray, points: np.ndarray, queries: np.ndarray) -> tuple[
             axis=1,
         )
 
-    active = np.arange(len(queries))
-    for _ in range(4 * int(np.sqrt(len(faces))) + 10):
-        tests = side_tests(current[active], queries[active])
-        worst = np.argmin(tests, axis=1)
-        moving = tests[np.arange(active.size), worst] < 0
-        if not moving.any():
-            active = active[:0]
-            break
-        active = active[moving]
-        current[active] = neighbours[current[active], worst[moving]]
-    for index in active:  # queries the walk did not bring home
+    from scipy.spatial import cKDTree
+
+    neighbours = _neighbours(faces)
+    most_steps = 4 * int(np.sqrt(len(faces))) + 10
+    current = _walk(faces, points, neighbours, queries, np.full(len(queries), -1), most_steps)
+    lost = np.flatnonzero(current < 0)
+    if lost.size:
+        vertex_face = np.empty(len(points), dtype=np.int64)
+        vertex_face[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
+        starts = vertex_face[cKDTree(points).query(queries[lost])[1]]
+        current[lost] = _walk(faces, points, neighbours, queries[lost], starts, most_steps)
+    for index in np.flatnonzero(current < 0):  # queries the walk did not bring home
         tests = side_tests(np.arange(len(faces)), np.broadcast_to(queries[index], (len(faces), 3)))
         current[index] = np.argmax(tests.min(axis=1))
     weights = np.clip(side_tests(current, queries), 0.0, None)

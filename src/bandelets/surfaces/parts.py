@@ -7,8 +7,10 @@ route (:mod:`.chartcodec`): the bunny and the fandisk in one file at Draco's qua
 size, 7,859 bytes, measured 71.7 dB Hausdorff PSNR as two spherical files against 58.9 dB as
 one multi-chart image. The encoder (:func:`encode_parts`) codes each such part as a file of its
 own (at most :data:`MOST_SPHERES` of them, the largest), and every other component together as
-one more file (the chart route), the bits shared in proportion to the vertex counts; the caller
-keeps this record or the chart route's file, whichever measures better (:func:`better`).
+one more file (the chart route), the bits shared in proportion to the vertex counts. The caller
+(:func:`.codec.encode_mesh`) keeps this record alone when there is no such rest and the rate is
+low (:data:`.codec.RECORD_ALONE_BELOW`), else this record or the chart route's file of the whole
+mesh, whichever measures better (:func:`better`).
 
 The decoded mesh is the parts' decoded meshes one after the other: each part keeps its identity
 (a component of its own), a spherical part comes back with its own vertex count (simplified from
