@@ -22,6 +22,7 @@ no such warm-up, and shipping compiled kernels would tie the package to one CPU 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 from .decoder import decode
@@ -34,10 +35,17 @@ FILES = Path(__file__).with_name("warmup_files")
 _NAMES = ("lifted", "filtered", "riesz", "lossless")
 
 
+#: The longest the warm-up waits for the first run to compile the coefficient coder, in seconds.
+WAIT = 90.0
+
+
 def warm_up() -> None:
-    """Compile the kernels the encoder reaches last (:func:`_late_kernels`), then decode every file of
-    :data:`FILES` (with and without the restoration, and at level 1)."""
+    """Compile the kernels the encoder reaches last (:func:`_late_kernels`), then, once the coefficient
+    coder is compiled (:func:`_await_coefficient_coder`), decode every file of :data:`FILES` (with and
+    without the restoration, and at level 1)."""
     _late_kernels()
+    _middle_kernels()
+    _await_coefficient_coder()
     for name in _NAMES:
         data = (FILES / f"{name}.bdl").read_bytes()
         decode(data)
@@ -47,24 +55,70 @@ def warm_up() -> None:
 
 
 def _late_kernels() -> None:
-    """The kernels a first encode reaches last, run once on small arrays: the restoration in both
-    precisions and the Riesz pair's rotation, the loop filter's fit and filter, the bandelet search
-    of the squares (serial and parallel). Decoding the files first would compile the coders, which
-    the encoder needs at once and compiles itself meanwhile: the same kernel compiled twice, while
-    the encoder's later ones wait (a first encode of a 512 x 512 map: BENCHMARKS, "The first run")."""
+    """The kernels a first encode reaches last, run once on small arrays, the last first: the loop
+    filter's fit and filter, the measure of a normal map's decoded channels (in both precisions),
+    the restoration in both precisions and the Riesz pair's rotation, the bandelet search of the
+    squares (serial and parallel). Decoding the files first would compile the coders, which the
+    encoder needs at once and compiles itself meanwhile: the same kernel compiled twice, while the
+    encoder's later ones wait (a first encode of a 512 x 512 map: BENCHMARKS, "The first run")."""
     import numpy as np
 
+    from ..metrics import psnr_of_channels
     from ..restore import loopfilter
     from ..restore.precisions import compile_both
     from ..search.lagrangian import best_directions
 
-    compile_both()
     rng = np.random.default_rng(0)
     decoded = rng.standard_normal((2, 64, 64))
     target = 0.5 * decoded + 0.25 * (np.roll(decoded, 1, 1) + np.roll(decoded, 1, 2))  # a filter pays
     loopfilter.choose(decoded, target, 0.5, 0.1, lambda c: float(np.sum((c - target) ** 2)))
+    measure = psnr_of_channels(rng.standard_normal((8, 8, 3)), "normal-map", 8)
+    measure(rng.standard_normal((3, 8, 8)))
+    measure(rng.standard_normal((3, 8, 8)).astype(np.float32))
+    compile_both()
     best_directions(rng.standard_normal((2, 256, 256)), 8, 0.5)  # enough work to run in parallel
     best_directions(rng.standard_normal((2, 8, 8)), 4, 0.5)  # too little: in one thread
+
+
+def _middle_kernels() -> None:
+    """The kernels a first encode reaches after the coefficient coder, while it compiles that: the
+    lifting along directions and its search's costs, the bandelet transform of the squares (in the
+    layouts the encoder gives them)."""
+    import numpy as np
+
+    from ..transform import directional
+    from ..transform.bandeletize import bandeletize
+    from ..transform.lifting import direction_costs
+    from ..transform.quadtree import flat_quadtree
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((64, 64))
+    direction_costs(x, directional.OFFSETS, directional.WEIGHTS, directional.SCALES, directional.BLOCK, 0.1)
+    fields = [np.zeros(shape, np.int64) for shape in directional.field_shapes(x.shape, 2)]
+    directional.transform(x, 3, 2, fields)
+    pair = rng.standard_normal((16, 32))
+    tree = flat_quadtree((16, 16), 8)
+    tree.direction[-1][...] = 0  # every square along a direction: transformed
+    bandeletize(pair[:, :16], tree, out=pair[:, 16:])
+
+
+def _await_coefficient_coder() -> None:
+    """Wait, at most :data:`WAIT` seconds, until the coefficient coder is in numba's cache.
+
+    Every file's decode needs it, and the first run compiles it early (a first encode: after the
+    lossless estimate and the plain lifting), about 18 s of CPU: decoding meanwhile compiled it a
+    second time, on the core that would have compiled the encoder's later kernels (the first encode
+    of a 512 x 512 map: BENCHMARKS, "The first run"). Numba writes a kernel's cache index whole
+    once it is compiled, and loads it from there at the decode's first call."""
+    from ..coding.coefficients import _coefficients
+
+    try:
+        index = _coefficients._cache._cache_file  # numba's own, not public: without it, no wait
+        end = time.monotonic() + WAIT
+        while not index._load_index() and time.monotonic() < end:
+            time.sleep(0.5)
+    except AttributeError:
+        pass
 
 
 def _make() -> None:
