@@ -82,16 +82,24 @@ def _late_kernels() -> None:
 
 def _middle_kernels() -> None:
     """The kernels a first encode reaches after the coefficient coder, while it compiles that: the
-    lifting along directions and its search's costs, the bandelet transform of the squares (in the
-    layouts the encoder gives them)."""
+    approximation's coder, the lifting along directions and its search's costs, the bandelet
+    transform of the squares (in the layouts the encoder gives them)."""
     import numpy as np
 
+    from ..coding import approximation
+    from ..coding.order import approximation_plan
+    from ..coding.rangecoder import Coder
     from ..transform import directional
     from ..transform.bandeletize import bandeletize
     from ..transform.lifting import direction_costs
     from ..transform.quadtree import flat_quadtree
 
     rng = np.random.default_rng(0)
+    q = rng.integers(-3, 4, 256).astype(np.int32)
+    approximation.code_approximation(
+        Coder(approximation.N_CONTEXTS), q, approximation_plan((16, 16), 2), np.zeros(256, np.int64),
+        np.zeros(0, np.int32), np.zeros(256),
+    )  # fmt: skip
     x = rng.standard_normal((64, 64))
     direction_costs(x, directional.OFFSETS, directional.WEIGHTS, directional.SCALES, directional.BLOCK, 0.1)
     fields = [np.zeros(shape, np.int64) for shape in directional.field_shapes(x.shape, 2)]
