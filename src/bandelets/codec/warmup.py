@@ -40,11 +40,12 @@ WAIT = 90.0
 
 
 def warm_up() -> None:
-    """Compile the kernels the encoder reaches last (:func:`_late_kernels`), then, once the coefficient
-    coder is compiled (:func:`_await_coefficient_coder`), decode every file of :data:`FILES` (with and
-    without the restoration, and at level 1)."""
+    """Compile, on small arrays, the kernels a first encode reaches after the coefficient coder, in
+    the order it reaches them (:func:`_next_kernels`, then :func:`_late_kernels`), then, once the
+    coefficient coder is compiled (:func:`_await_coefficient_coder`), decode every file of
+    :data:`FILES` (with and without the restoration, and at level 1)."""
+    _next_kernels()
     _late_kernels()
-    _middle_kernels()
     _await_coefficient_coder()
     for name in _NAMES:
         data = (FILES / f"{name}.bdl").read_bytes()
@@ -54,41 +55,20 @@ def warm_up() -> None:
             decode(data, level=1)
 
 
-def _late_kernels() -> None:
-    """The kernels a first encode reaches last, run once on small arrays, the last first: the loop
-    filter's fit and filter, the measure of a normal map's decoded channels (in both precisions),
-    the restoration in both precisions and the Riesz pair's rotation, the bandelet search of the
-    squares (serial and parallel). Decoding the files first would compile the coders, which the
-    encoder needs at once and compiles itself meanwhile: the same kernel compiled twice, while the
-    encoder's later ones wait (a first encode of a 512 x 512 map: BENCHMARKS, "The first run")."""
-    import numpy as np
-
-    from ..metrics import psnr_of_channels
-    from ..restore import loopfilter
-    from ..restore.precisions import compile_both
-    from ..search.lagrangian import best_directions
-
-    rng = np.random.default_rng(0)
-    decoded = rng.standard_normal((2, 64, 64))
-    target = 0.5 * decoded + 0.25 * (np.roll(decoded, 1, 1) + np.roll(decoded, 1, 2))  # a filter pays
-    loopfilter.choose(decoded, target, 0.5, 0.1, lambda c: float(np.sum((c - target) ** 2)))
-    measure = psnr_of_channels(rng.standard_normal((8, 8, 3)), "normal-map", 8)
-    measure(rng.standard_normal((3, 8, 8)))
-    measure(rng.standard_normal((3, 8, 8)).astype(np.float32))
-    compile_both()
-    best_directions(rng.standard_normal((2, 256, 256)), 8, 0.5)  # enough work to run in parallel
-    best_directions(rng.standard_normal((2, 8, 8)), 4, 0.5)  # too little: in one thread
-
-
-def _middle_kernels() -> None:
-    """The kernels a first encode reaches after the coefficient coder, while it compiles that: the
-    approximation's coder, the lifting along directions and its search's costs, the bandelet
-    transform of the squares (in the layouts the encoder gives them)."""
+def _next_kernels() -> None:
+    """What a first encode needs as soon as its coefficient coder is compiled (the first 40 s of a
+    512 x 512 map's, spent on the lossless estimate, the plain lifting and that coder): the
+    approximation's coder, the bandelet search of the squares (serial and parallel), the lifting
+    along directions and its search's costs, the bandelet transform of the squares (in the layouts
+    the encoder gives them). Decoding the files instead would compile the coders the encoder is
+    compiling: the same kernel twice, while the encoder's later ones wait (BENCHMARKS, "The first
+    run")."""
     import numpy as np
 
     from ..coding import approximation
     from ..coding.order import approximation_plan
     from ..coding.rangecoder import Coder
+    from ..search.lagrangian import best_directions
     from ..transform import directional
     from ..transform.bandeletize import bandeletize
     from ..transform.lifting import direction_costs
@@ -100,6 +80,8 @@ def _middle_kernels() -> None:
         Coder(approximation.N_CONTEXTS), q, approximation_plan((16, 16), 2), np.zeros(256, np.int64),
         np.zeros(0, np.int32), np.zeros(256),
     )  # fmt: skip
+    best_directions(rng.standard_normal((2, 8, 8)), 4, 0.5)  # too little to run in parallel
+    best_directions(rng.standard_normal((2, 256, 256)), 8, 0.5)  # enough
     x = rng.standard_normal((64, 64))
     direction_costs(x, directional.OFFSETS, directional.WEIGHTS, directional.SCALES, directional.BLOCK, 0.1)
     fields = [np.zeros(shape, np.int64) for shape in directional.field_shapes(x.shape, 2)]
@@ -108,6 +90,26 @@ def _middle_kernels() -> None:
     tree = flat_quadtree((16, 16), 8)
     tree.direction[-1][...] = 0  # every square along a direction: transformed
     bandeletize(pair[:, :16], tree, out=pair[:, 16:])
+
+
+def _late_kernels() -> None:
+    """The kernels a first encode reaches last, in its order: the restoration in both precisions and
+    the Riesz pair's rotation, the measure of a normal map's decoded channels (in both precisions),
+    the loop filter's fit and filter."""
+    import numpy as np
+
+    from ..metrics import psnr_of_channels
+    from ..restore import loopfilter
+    from ..restore.precisions import compile_both
+
+    compile_both()
+    rng = np.random.default_rng(0)
+    measure = psnr_of_channels(rng.standard_normal((8, 8, 3)), "normal-map", 8)
+    measure(rng.standard_normal((3, 8, 8)))
+    measure(rng.standard_normal((3, 8, 8)).astype(np.float32))
+    decoded = rng.standard_normal((2, 64, 64))
+    target = 0.5 * decoded + 0.25 * (np.roll(decoded, 1, 1) + np.roll(decoded, 1, 2))  # a filter pays
+    loopfilter.choose(decoded, target, 0.5, 0.1, lambda c: float(np.sum((c - target) ** 2)))
 
 
 def _await_coefficient_coder() -> None:
