@@ -1,15 +1,17 @@
-"""The decoder's kernels compiled in a second process while a first run's encoder compiles its own.
+"""Kernels compiled in a second process while a first run's encoder compiles its own.
 
-A fresh install compiles every numba kernel on its first call, on one core: about 150 s of CPU for
-the first encode and decode of a 512 x 512 map. Half of those kernels are the decoder's (the
-coefficient and approximation coders, the inverse lifting, the restoration in both precisions, the
-loop filter), which the encoder also runs once it has a file. So when the command line hears the
-first compilation of a run (:mod:`bandelets.runtime.compilation`), it starts this module as a
-process of its own: it decodes the few small files of ``warmup_files/`` (a lifted normal map with its
-restoration, one with a loop filter, a Riesz pair, a lossless file), which compiles those kernels
-into numba's cache on the other core while the encoder compiles its searches; the encoder then loads
-them from the cache instead of compiling them (the first encode of the vent decal map took 92 s of
-CPU instead of 150 s on the 2-core machine: BENCHMARKS.md, "The first run").
+A fresh install compiles every numba kernel on its first call, on one core: about 100 s of CPU for
+the first encode of a 512 x 512 map. So when the command line hears the first compilation of a run
+(:mod:`bandelets.runtime.compilation`), it starts this module as a process of its own, which
+compiles on the other core, on small arrays, what the encoder needs once it has compiled its first
+kernels (the lossless estimate, the plain lifting, the coefficient coder: about 40 s), in the order
+it needs them: the approximation's coder, the squares' search, the lifting along directions, the
+squares' transform, then the restoration, the measures and the loop filter. The encoder then loads
+them from numba's cache instead of compiling them. Once the coefficient coder is cached, it decodes
+the few small files of ``warmup_files/`` (a lifted normal map with its restoration, one with a loop
+filter, a Riesz pair, a lossless file): the decoder's own kernels, for the decode that follows. The
+first encode of the vent decal map took 57.7 s of wall, 52 s of CPU in each process, against 67 s
+before this order (BENCHMARKS.md, "The first run").
 
 Numba writes each cache file whole (a temporary file renamed), so two processes compiling at once
 never leave a broken kernel; at worst a kernel compiled by both is compiled twice. Numba offers
