@@ -10,8 +10,8 @@ squares' transform, then the restoration, the measures and the loop filter. The 
 them from numba's cache instead of compiling them. Once the coefficient coder is cached, it decodes
 the few small files of ``warmup_files/`` (a lifted normal map with its restoration, one with a loop
 filter, a Riesz pair, a lossless file): the decoder's own kernels, for the decode that follows. The
-first encode of the vent decal map took 57.7 s of wall, 52 s of CPU in each process, against 67 s
-before this order (BENCHMARKS.md, "The first run").
+first encode of the vent decal map took 54 to 58 s of wall, about 50 s of CPU in each process,
+against 67 s before this order (BENCHMARKS.md, "The first run").
 
 Numba writes each cache file whole (a temporary file renamed), so two processes compiling at once
 never leave a broken kernel; at worst a kernel compiled by both is compiled twice. Numba offers
