@@ -1,12 +1,13 @@
 """Say so when numba compiles the kernels, instead of a silent first run.
 
 The compiled kernels (``@njit(cache=True)`` throughout the package) are compiled on their first
-call after installing, about half a minute in all on two cores, and loaded from numba's cache
-in every later run. :func:`announce` listens to numba's compile events (a cache hit raises
-none) and writes one line to stderr before the first compilation of the process; with ``warm``,
-it also starts :mod:`bandelets.codec.warmup` in a process of its own, which compiles the decoder's
-kernels on the other core meanwhile (the first encode of a 512 x 512 map: 92 s of CPU instead of
-150). The environment variable ``BANDELETS_WARM_UP=0`` keeps that process from starting.
+call after installing (the first encode of a 512 x 512 map: under a minute on two cores), and
+loaded from numba's cache in every later run. :func:`announce` listens to numba's compile events
+(a cache hit raises none) and writes one line to stderr before the first compilation of the
+process; with ``warm``, it also starts :mod:`bandelets.codec.warmup` in a process of its own,
+which compiles the kernels the encoder reaches later on the other core meanwhile (the first
+encode of a 512 x 512 map: 58 s of wall instead of 100 s of CPU on one core). The environment
+variable ``BANDELETS_WARM_UP=0`` keeps that process from starting.
 """
 
 from __future__ import annotations

@@ -32,6 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..runtime.signatures import kernel
+
 __all__ = ["cdf97_pass", "directional_pass", "haar_pass", "scale_subbands"]
 
 # Lifting factorisation of the CDF 9/7 filter pair (Daubechies and Sweldens 1998).
@@ -43,6 +45,18 @@ ZETA = 1.230174104914001
 
 # PyWavelets' Haar filter taps.
 _SQRT_HALF = 0.7071067811865476
+
+
+def _layouts(signature: str) -> tuple[str, str]:
+    """``signature``, its blocks written ``X``, for row-major blocks and for blocks of any layout.
+
+    Numba compiles a kernel anew for every layout it is handed: the passes take row-major blocks,
+    their transposes and corners of larger arrays, three compilations of each pass on a first run.
+    The row-major one is kept (the finest level's row passes and the direction search's trials run
+    their inner loops vectorised: a 512 x 512 analysis with every pass compiled for any layout took
+    20 % longer); transposes and corners share the other (:mod:`bandelets.runtime.signatures`).
+    """
+    return signature.replace("X", "f8[:, ::1]"), signature.replace("X", "f8[:, :]")
 
 
 @njit(cache=True, nogil=True)
@@ -118,7 +132,7 @@ def _step(x, c, odd, edge, by_lines):
         x[i, target + last] = x[i, target + last] + c * (x[i, source + last] + edge[i])
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, b1, b1, b1, i8[:], i8[:], f8[:], i8)"))
 def _lift(x, forward, by_lines, spherical, first, second, weight, h):
     """The four lifting steps of CDF 9/7 (or their inverse), in place on ``x`` (split layout)."""
     n = x.shape[1] // 2
@@ -148,7 +162,7 @@ def _line_at(lines, pos):
     return i, i + 1, pos - i
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, b1, b1, i8[:, :], f8[:], f8[:, :, :], i8, i8)"))
 def _lift_along(x, forward, by_lines, codes, slopes, weights, block, steps):
     """The first ``steps`` lifting steps of the filters of :func:`directional_pass` (or of their
     inverse), in place on ``x`` (split layout, ``n`` per half), each block of ``block`` lines and
@@ -245,7 +259,7 @@ def _lift_run(x, top, bottom, left, right, slope, c, e, target, source, shift, b
                 x[r, target + j] += c * before + e * after
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, i8[:, :], f8[:, :], i8, b1)"))
 def _rescale(x, codes, scales, block, forward):
     """Multiply (``forward``; else divide) the low- and high-pass samples of every block of ``x``
     (split layout) by ``scales[code]`` of its code, skipping the codes scaled by ``(1, 1)``."""
@@ -264,7 +278,7 @@ def _rescale(x, codes, scales, block, forward):
                     x[r, n + j] *= fd
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, i8, f8, f8[:, :])"))
 def _high_pass_bits(x, block, threshold, costs):
     """Add ``log2(1 + 2 |d| / T)`` of every high-pass sample ``d`` of ``x`` (split layout) to
     ``costs`` of its block (see :func:`directional_pass`)."""
@@ -357,7 +371,7 @@ def _pair(a, b, haar, forward):
     return _SQRT_HALF * a + _SQRT_HALF * b, _SQRT_HALF * a + -_SQRT_HALF * b
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, X, b1, b1)"))
 def _split(source, target, by_lines, haar):
     """``target[:, :n] = source[:, 0::2]``, ``target[:, n:] = source[:, 1::2]`` (:func:`_pair` of them)."""
     lines, n = source.shape[0], source.shape[1] // 2
@@ -371,7 +385,7 @@ def _split(source, target, by_lines, haar):
                 target[i, j], target[i, n + j] = _pair(source[i, 2 * j], source[i, 2 * j + 1], haar, True)
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, X, b1, b1)"))
 def _merge(source, target, by_lines, haar):
     """The inverse of :func:`_split`."""
     lines, n = source.shape[0], source.shape[1] // 2
@@ -385,7 +399,7 @@ def _merge(source, target, by_lines, haar):
                 target[i, 2 * j], target[i, 2 * j + 1] = _pair(source[i, j], source[i, n + j], haar, False)
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, b1, b1)"))
 def _normalise(x, by_lines, forward):
     """``s *= ZETA``, ``d /= ZETA`` (forward), or the other way round, as the numpy lifting did."""
     lines, n = x.shape[0], x.shape[1] // 2
@@ -446,7 +460,7 @@ def cdf97_pass(source: np.ndarray, target: np.ndarray, forward: bool, folds=None
         _merge(source, target, by_lines, False)
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, b1, f8)"))
 def _box_predict(x, by_lines, sign):
     """``d_j += sign (s_(j+1) - s_(j-1)) / 8`` on every line of ``x`` (``s`` its first half, ``d`` its
     second), ``s`` extended by half-sample symmetry (``s_-1 = s_0``, ``s_n = s_(n-1)``)."""
@@ -481,7 +495,7 @@ def haar_pass(source: np.ndarray, target: np.ndarray, forward: bool) -> None:
     (_split if forward else _merge)(source, target, _by_lines(source), True)
 
 
-@njit(cache=True, nogil=True)
+@kernel(*_layouts("void(X, i8, f8[:], b1)"))
 def scale_subbands(c, levels, norms, inverse):
     """Multiply (``inverse``: divide) every subband of ``c`` (Mallat layout, ``levels`` levels) by
     its entry of ``norms``, in place: the approximation first, then H, V, D from the coarsest
