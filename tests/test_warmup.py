@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from bandelets import decode
 from bandelets.codec.warmup import FILES
@@ -49,3 +50,27 @@ def test_the_warm_up_runs():
         [sys.executable, "-m", "bandelets.codec.warmup"], capture_output=True, text=True, timeout=600
     )
     assert (done.returncode, done.stderr) == (0, "")
+
+
+@pytest.mark.parametrize("compiling", [None, "dead"])
+def test_the_warm_up_waits_only_for_a_process_that_compiles(monkeypatch, compiling):
+    from bandelets.codec import warmup
+    from bandelets.coding.coefficients import _coefficients
+    from bandelets.runtime.compilation import COMPILING
+
+    index = _coefficients._cache._cache_file
+    monkeypatch.setattr(index, "_load_index", lambda: {})  # the coder not in the cache yet
+
+    def sleep(seconds):
+        raise AssertionError("waited")
+
+    monkeypatch.setattr(warmup.time, "sleep", sleep)
+    if compiling is None:  # run by hand: nobody compiles it
+        monkeypatch.delenv(COMPILING, raising=False)
+    else:  # its parent gone
+        child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True)
+        monkeypatch.setenv(COMPILING, child.stdout.decode().strip())
+    warmup._await_coefficient_coder()  # returns at once
+    monkeypatch.setenv(COMPILING, str(os.getpid()))  # a live one: it waits
+    with pytest.raises(AssertionError, match="waited"):
+        warmup._await_coefficient_coder()

@@ -23,10 +23,12 @@ no such warm-up, and shipping compiled kernels would tie the package to one CPU 
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
 
+from ..runtime.compilation import COMPILING
 from .decoder import decode
 
 __all__ = ["FILES", "warm_up"]
@@ -115,7 +117,9 @@ def _late_kernels() -> None:
 
 
 def _await_coefficient_coder() -> None:
-    """Wait, at most :data:`WAIT` seconds, until the coefficient coder is in numba's cache.
+    """Wait, at most :data:`WAIT` seconds and while the process that started this one runs
+    (:data:`bandelets.runtime.compilation.COMPILING`; no wait without it), until the coefficient
+    coder is in numba's cache.
 
     Every file's decode needs it, and the first run compiles it early (a first encode: after the
     lossless estimate and the plain lifting), about 18 s of CPU: decoding meanwhile compiled it a
@@ -124,13 +128,27 @@ def _await_coefficient_coder() -> None:
     once it is compiled, and loads it from there at the decode's first call."""
     from ..coding.coefficients import _coefficients
 
+    compiling = os.environ.get(COMPILING, "")
+    if not compiling.isdigit():  # run by hand or by a test: nobody else compiles it
+        return
     try:
         index = _coefficients._cache._cache_file  # numba's own, not public: without it, no wait
         end = time.monotonic() + WAIT
-        while not index._load_index() and time.monotonic() < end:
+        while not index._load_index() and time.monotonic() < end and _alive(int(compiling)):
             time.sleep(0.5)
     except AttributeError:
         pass
+
+
+def _alive(pid: int) -> bool:
+    """Whether the process ``pid`` still runs (the one compiling the coefficient coder)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's: it runs
+        return True
+    return True
 
 
 def _make() -> None:

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 from numba.core import event
 
-__all__ = ["MESSAGE", "WARM_UP", "announce"]
+__all__ = ["COMPILING", "MESSAGE", "WARM_UP", "announce"]
 
 #: What :func:`announce` writes.
 MESSAGE = "bandelets: compiling kernels (first run only)..."
@@ -28,6 +28,9 @@ MESSAGE = "bandelets: compiling kernels (first run only)..."
 #: The environment variable that, set to ``0``, keeps :func:`announce` from starting the warm-up
 #: process (the warm-up process itself runs with it).
 WARM_UP = "BANDELETS_WARM_UP"
+#: The environment variable through which the warm-up process learns the id of the process that
+#: started it, compiling (the warm-up waits for that one's coefficient coder, not for nobody's).
+COMPILING = "BANDELETS_WARM_UP_FOR"
 
 
 class _Announcer(event.Listener):
@@ -71,7 +74,7 @@ def _start_warm_up() -> None:
     try:
         subprocess.Popen(
             [sys.executable, "-m", "bandelets.codec.warmup"],
-            env={**os.environ, WARM_UP: "0"},
+            env={**os.environ, WARM_UP: "0", COMPILING: str(os.getpid())},
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
