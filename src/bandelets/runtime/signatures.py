@@ -46,11 +46,13 @@ class Kernel:
     def __call__(self, *args: Any) -> Any:
         if not self._ready:
             with self._lock:
-                if not self._ready:
+                # NUMBA_DISABLE_JIT=1 (the decoder's bounds checks, tests/test_reliability_issue40.py):
+                # njit gave back the Python function itself, nothing to compile.
+                if not self._ready and hasattr(self.dispatcher, "compile"):
                     for signature in self.signatures:
                         self.dispatcher.compile(signature)
                     self.dispatcher.disable_compile()
-                    self._ready = True
+                self._ready = True
         return self.dispatcher(*args)
 
 
