@@ -18,7 +18,7 @@ import numpy as np
 from ..coding.image import code_image, new_coders
 from ..format.fields import padded_shape
 from ..format.header import Header
-from ..runtime.threads import CORES, one_of_many, workers
+from ..runtime.threads import spare_core, workers
 from ..search.quantization import optimise_bins
 from ..transform.wavelets import subband_slices
 
@@ -36,7 +36,7 @@ def in_step(header: Header) -> bool:
     prices, :mod:`bandelets.codec.at_threshold`), and a calling thread that does not already share
     the cores with the library's others (a tile of a tiled encode, :func:`thread_map`'s items)."""
     large = header.height * header.width >= IN_STEP_FROM
-    return CORES > 1 and large and not header.frames and not one_of_many()
+    return large and not header.frames and spare_core()
 
 
 def code_in_step(

@@ -146,8 +146,8 @@ def _alive(pid: int) -> bool:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except OSError:  # another user's: it runs
-        return True
+    except PermissionError:  # another user's: it runs
+        pass
     return True
 
 

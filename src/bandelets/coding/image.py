@@ -13,7 +13,7 @@ import numpy as np
 
 from ..format.fields import padded_shape
 from ..format.header import Header
-from ..runtime.threads import CORES, one_of_many, workers
+from ..runtime.threads import spare_core, workers
 from ..transform.bandeletize import debandeletize_bins
 from ..transform.quadtree import flat_quadtree, root_width
 from ..transform.wavelets import subband_slices
@@ -124,7 +124,7 @@ def code_image(
     )
     # A decoder decodes the next subband's quadtree in a worker thread while it decodes the bins of
     # this one (the streams are apart; the quadtree's contexts read the subbands decoded before).
-    ahead = decoding and size >= AHEAD_FROM and CORES > 1 and not one_of_many()
+    ahead = decoding and size >= AHEAD_FROM and spare_core()
     pending = None
     for index, (_, _, where) in enumerate(slices):
         if header.levels - index // 3 <= upto:

@@ -13,7 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-__all__ = ["BY_ROWS_FROM", "CORES", "by_rows", "each", "one_of_many", "thread_map", "workers"]
+__all__ = ["BY_ROWS_FROM", "CORES", "by_rows", "each", "one_of_many", "spare_core", "thread_map", "workers"]
 
 #: Cores this process may run on (its CPU affinity): the kernels that split their rows in threads ask.
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
@@ -68,18 +68,28 @@ def each(function, items, threaded: bool = True) -> list:
     kernels transform without the GIL. Serial inside a worker thread, which would otherwise wait
     on the pool it is part of."""
     items = list(items)
-    inside = threading.current_thread().name.startswith("bandelets")
-    if not threaded or len(items) < 2 or CORES < 2 or inside:
+    if not threaded or len(items) < 2 or CORES < 2 or _in_pool():
         return [function(item) for item in items]
     first, *others = items
     futures = [workers().submit(function, item) for item in others]
     return [function(first), *(future.result() for future in futures)]
 
 
+def _in_pool() -> bool:
+    """Whether the calling thread is one of the :func:`workers` (which must not wait on its own pool)."""
+    return threading.current_thread().name.startswith("bandelets")
+
+
 def one_of_many() -> bool:
     """Whether the calling thread already shares the cores with others of the library's: one of the
-    :func:`workers` (which must not wait on its own pool) or an item of a :func:`thread_map`."""
-    return threading.current_thread().name.startswith("bandelets") or getattr(_MAPPED, "item", False)
+    :func:`workers` or an item of a :func:`thread_map`."""
+    return _in_pool() or getattr(_MAPPED, "item", False)
+
+
+def spare_core() -> bool:
+    """Whether work handed to the :func:`workers` would run on a core of its own: a second core, and
+    a calling thread that does not already share them (:func:`one_of_many`)."""
+    return CORES > 1 and not one_of_many()
 
 
 #: Values from which :func:`by_rows` splits the rows in two threads (below, the hand-over costs more).
@@ -91,7 +101,7 @@ def by_rows(function, array: np.ndarray) -> np.ndarray:
     ``array`` alone (numpy's elementwise functions, which let go of the GIL on large arrays): from
     :data:`BY_ROWS_FROM` values on, the second half of the rows in a worker thread, the same numbers."""
     rows = array.shape[0]
-    if array.size < BY_ROWS_FROM or rows < 2 or CORES < 2 or one_of_many():
+    if array.size < BY_ROWS_FROM or rows < 2 or not spare_core():
         return function(array)
     half = rows // 2
     second = workers().submit(function, array[half:])

@@ -112,7 +112,8 @@ def _fma(typingctx, x, y, z):
 @njit(cache=True, inline="always")
 def _dot(x0, x1, x2, y0, y1, y2):
     """The dot product as numba's ``@`` of two 3-vectors rounds it (OpenBLAS's ``ddot``: fused
-    multiply-adds, in order): the placements stay those of the vector code before, bit for bit.
+    multiply-adds, in order): the placements stay those of the vector code before, bit for bit,
+    and are now the same on every CPU (``llvm.fma`` rounds once, in hardware or in libm's ``fma``).
     Another rounding moves them by 1e-16, and the relaxation after them ends elsewhere (up to
     0.5 dB apart on the shared meshes at 0.5 bits per vertex, either way)."""
     return _fma(x2, y2, _fma(x1, y1, x0 * y0))

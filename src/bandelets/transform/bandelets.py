@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..format.fields import DEFAULT_TRANSFORM_1D, padded_shape
-from ..runtime.threads import each, one_of_many
+from ..runtime.threads import each, spare_core
 from .bandeletize import debandeletize
 from .wavelets import subband_slices, wavedec, waverec
 
@@ -99,7 +99,6 @@ def wavelet_coefficients(
 ) -> list[np.ndarray]:
     """Padded, normalised wavelet coefficients of every channel of ``x`` (H, W, C); the channels in
     threads from :data:`CHANNELS_IN_THREADS_FROM` pixels (:func:`bandelets.runtime.threads.each`)."""
-    large = (
-        x.shape[0] * x.shape[1] >= CHANNELS_IN_THREADS_FROM and not one_of_many()
-    )  # not in a tile's thread
-    return each(lambda c: wavedec(c, wavelet, levels, extension), padded_channels(x, levels), large)
+    # Not in a tile's thread either, which shares the cores with the other tile in flight.
+    threaded = x.shape[0] * x.shape[1] >= CHANNELS_IN_THREADS_FROM and spare_core()
+    return each(lambda c: wavedec(c, wavelet, levels, extension), padded_channels(x, levels), threaded)
